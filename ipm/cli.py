@@ -1,0 +1,103 @@
+"""The ``ipm`` command.  Each sub-command lives beside the code it drives and is registered
+here; a :class:`~ipm.errors.UserError` becomes one line on stderr and exit status 2."""
+
+from __future__ import annotations
+
+import sys
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from ipm.errors import UserError
+from ipm.io import write_text
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="Fiber-level procedural yarn models from one macro photo.")
+
+
+def fail(message: str) -> typer.Exit:
+    typer.echo(f"error: {message}", err=True)
+    return typer.Exit(2)
+
+
+def check_output(path: Path) -> None:
+    """Fail before any work if ``path`` cannot be written (missing or read-only folder)."""
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise UserError(f"output folder {parent} does not exist")
+    import os
+
+    if not os.access(parent, os.W_OK):
+        raise UserError(f"output folder {parent} is not writable")
+
+
+@app.command()
+def sample(
+    out: Annotated[Path | None, typer.Option("-o", "--out", help="JSON file to write; "
+                                             "stdout if omitted")] = None,
+    seed: Annotated[int, typer.Option(help="seed of the guided sampler")] = 0,
+    preset: Annotated[str | None, typer.Option(help="one of the paper's 12 real yarns "
+                                               "(see `ipm presets`) instead of a random draw")]
+    = None,
+) -> None:
+    """Write the parameters of a plausible random yarn (the paper's guided sampler), or of a
+    preset, as a flat JSON object keyed by the paper's symbols."""
+    from ipm.presets import preset as get_preset
+    from ipm.prior import GuidedPrior
+
+    params = get_preset(preset) if preset else GuidedPrior().sample(np.random.default_rng(seed))
+    if out is None:
+        typer.echo(params.to_json())
+        return
+    check_output(out)
+    write_text(out, params.to_json() + "\n")
+
+
+@app.command()
+def presets() -> None:
+    """List the paper's 12 real yarns."""
+    from ipm.presets import PRESET_NAMES, preset
+
+    for name in PRESET_NAMES:
+        p = preset(name)
+        typer.echo(f"{name:11s} n={p.n} m={p.m:3d} R_ply={p.R_ply:.3f} alpha_ply={p.alpha_ply:6.3f}"
+                   f" alpha={p.alpha:6.3f} g={p.g}")
+
+
+class CurveFormat(str, Enum):
+    npz = "npz"
+    mitsuba = "mitsuba"
+
+
+@app.command()
+def curves(
+    params: Annotated[Path, typer.Argument(help="yarn parameters (JSON, as `ipm sample`)")],
+    out: Annotated[Path, typer.Option("-o", "--out", help="file to write")],
+    seed: Annotated[int, typer.Option(help="seed of the fiber generator")] = 0,
+    format: Annotated[CurveFormat, typer.Option(help="npz: arrays (points, offsets, radii, "
+                                                "kind, ply); mitsuba: a linearcurve file")]
+    = CurveFormat.npz,
+) -> None:
+    """Generate the yarn's fibers (mm, yarn axis = z) and write them."""
+    from ipm.generator import generate
+    from ipm.params import YarnParams
+
+    p = YarnParams.load(params)
+    check_output(out)
+    fs = generate(p, seed)
+    (fs.save_npz if format is CurveFormat.npz else fs.save_mitsuba)(out)
+    typer.echo(f"{fs.num_fibers} fibers, {len(fs.points)} vertices -> {out}", err=True)
+
+
+def main() -> None:
+    try:
+        app()
+    except UserError as e:
+        typer.echo(f"error: {e}", err=True)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        typer.echo("interrupted", err=True)
+        sys.exit(130)

@@ -1,0 +1,18 @@
+"""The physical frame of the reference capture, shared by the generator and the scene.
+
+The paper crops its macro photos to 2000x600 px with the yarn running horizontally through
+the centre.  ``ipm`` fixes the size of one pixel at the yarn so that an image tells absolute
+sizes: at ``PIXEL_SIZE_MM`` = 0.01 mm the full frame covers 20 x 6 mm, which holds the
+thickest core of the value intervals (2 (R_ply + r_x) <= 4.6 mm) with room for flyaways, and
+resolves the thinnest fibers of the intervals (2 t_y >= 0.012 mm) at about one pixel.
+"""
+
+FRAME_WIDTH_PX = 2000
+FRAME_HEIGHT_PX = 600
+PIXEL_SIZE_MM = 0.01
+FRAME_WIDTH_MM = FRAME_WIDTH_PX * PIXEL_SIZE_MM
+FRAME_HEIGHT_MM = FRAME_HEIGHT_PX * PIXEL_SIZE_MM
+
+#: Length of a generated yarn along its axis: the frame's width plus a margin on each side,
+#: so fiber ends and small rotations of the yarn (photometric variation) stay out of view.
+YARN_LENGTH_MM = FRAME_WIDTH_MM + 6.0

@@ -46,13 +46,15 @@ def ply_frames(center: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, e1, np.cross(e1, t)
 
 
-def fiber_offsets_in_ply(fs: FiberSet) -> dict[int, np.ndarray]:
+def fiber_offsets_in_ply(fs: FiberSet, centers: dict[int, np.ndarray] | None = None
+                         ) -> dict[int, np.ndarray]:
     """Per ply, the (F_p, V, 3) coordinates of its fibers in the co-rotating frame
-    ``(along e_1, along e_2, along T)`` around the ply centre line."""
+    ``(along e_1, along e_2, along T)`` around the ply centre line (by default the one
+    :func:`ply_centerlines` estimates; pass exact ones to avoid its small bias)."""
     core = core_fibers(fs)
     ply = fs.ply[: len(core)]
     out = {}
-    for k, c in ply_centerlines(fs).items():
+    for k, c in (centers or ply_centerlines(fs)).items():
         t, e1, e2 = ply_frames(c)
         d = core[ply == k] - c
         out[k] = np.stack([np.sum(d * e1, -1), np.sum(d * e2, -1), np.sum(d * t, -1)], -1)

@@ -208,7 +208,7 @@ class YarnParams:
             raise ParamError(f"expected a vector of {len(PARAM_ORDER)} values, got {v.shape}")
         vals: dict[str, Any] = {}
         for x, (k, iv) in zip(np.clip(v, 0, 1), PAPER_INTERVALS.items(), strict=True):
-            val = iv.lo + x * (iv.hi - iv.lo)
+            val = min(max(iv.lo + x * (iv.hi - iv.lo), iv.lo), iv.hi)  # rounding at the ends
             vals[k] = int(round(val)) if iv.integer else float(val)
         extra = {} if base is None else {k: getattr(base, k) for k in (*EXTRA_INTERVALS, "color")}
         return cls(**vals, **extra)

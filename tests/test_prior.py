@@ -1,0 +1,32 @@
+import numpy as np
+
+from ipm.params import PAPER_INTERVALS
+from ipm.prior import GuidedPrior
+
+
+def test_draws_stay_inside_the_value_intervals():
+    draws = GuidedPrior().sample_many(2000, seed=11)
+    for k, iv in PAPER_INTERVALS.items():
+        v = np.array([getattr(p, k) for p in draws])
+        assert v.min() >= iv.lo and v.max() <= iv.hi, k
+    assert {p.n for p in draws} == {2, 3, 4, 5, 6}
+
+
+def test_raw_yarn_relations_of_the_sampler():
+    for p in GuidedPrior().sample_many(300, seed=3):
+        r_frac = p.r_y / p.r_x
+        lo = {2: 0.67, 3: 0.72}.get(p.n, 0.85)
+        hi = {2: 0.9, 3: 0.91}.get(p.n, 0.95)
+        assert lo - 1e-12 <= r_frac <= hi + 1e-12
+        assert p.t_y <= p.t_x <= 2.5 * p.t_y
+        area_ply = p.m * p.t_x * p.t_y / (p.r_x * p.r_y)
+        assert 0.035 - 1e-9 <= area_ply <= 0.215 + 1e-9
+        # alpha and alpha_ply twist in opposite directions, helix angles in [50, 80] degrees
+        gamma = np.degrees(np.arctan(-p.alpha / (2 * np.pi * p.r_x)))
+        gamma_ply = np.degrees(np.arctan(p.alpha_ply / (2 * np.pi * p.R_ply)))
+        assert 50 - 1e-6 <= gamma <= 80 + 1e-6 and 50 - 1e-6 <= gamma_ply <= 80 + 1e-6
+
+
+def test_seeded():
+    a, b = GuidedPrior().sample_many(5, seed=1), GuidedPrior().sample_many(5, seed=1)
+    assert a == b and a != GuidedPrior().sample_many(5, seed=2)

@@ -127,7 +127,7 @@ def twist(template: np.ndarray, level: Level, rng: np.random.Generator,
     k = 2 * np.pi / level.pitch  # d theta / dz
     theta = k * z[None, :] + phi0
     sin, cos = np.sin(theta), np.cos(theta)
-    rad, drad = r_h, np.zeros_like(theta)
+    rad, drad = r_h, 0.0  # (N, 1): without migration the frame is constant per instance
     if level.migration > 0:
         arg = offset + speed * k * z[None, :]
         rad = r_h * (1 + amp * np.cos(arg))
@@ -135,22 +135,24 @@ def twist(template: np.ndarray, level: Level, rng: np.random.Generator,
     height = np.broadcast_to(z, theta.shape)
     if level.z_jitter > 0:
         height = height + level.z_jitter * rng.standard_normal(theta.shape)
-    out = np.stack([rad * sin, rad * cos, height], axis=-1)
-    if not (np.any(x) or np.any(y)):
-        return out
-    u_r = np.stack([sin, cos, np.zeros_like(sin)], axis=-1)
-    u_t = np.stack([cos, -sin, np.zeros_like(sin)], axis=-1)
-    if mapping == "global":
-        e1, e2 = u_r, u_t
+    # Work in the helix's cylindrical basis (u_r, u_t, e_z), u_r = (sin, cos, 0),
+    # u_t = (cos, -sin, 0): the centre line is rad u_r + height e_z, its derivative
+    # c'(z) = drad u_r + rad k u_t + e_z.  o_r, o_t, o_z: the template offset x e_1 + y e_2.
+    if mapping == "global" or not (np.any(x) or np.any(y)):
+        o_r, o_t, o_z = x, y, 0.0
     else:
-        tangent = drad[..., None] * u_r + (rad * k)[..., None] * u_t
-        tangent[..., 2] += 1.0
-        tangent /= np.linalg.norm(tangent, axis=-1, keepdims=True)
-        e1 = u_r - np.sum(u_r * tangent, axis=-1, keepdims=True) * tangent
-        e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
-        e2 = np.cross(e1, tangent)
-    out += x[None, :, None] * e1 + y[None, :, None] * e2
-    return out
+        a, b = drad, rad * k
+        inv_n = 1 / np.sqrt(a * a + b * b + 1)
+        t_r, t_t, t_z = a * inv_n, b * inv_n, inv_n  # tangent T
+        norm1 = 1 / np.sqrt(1 - t_r * t_r)  # e_1 = (u_r - t_r T) / |.|
+        e1_r, e1_t, e1_z = (1 - t_r * t_r) * norm1, -t_r * t_t * norm1, -t_r * t_z * norm1
+        # e_2 = e_1 x T; the cylindrical basis is left-handed (u_r x u_t = -e_z)
+        e2_r = -(e1_t * t_z - e1_z * t_t)
+        e2_t = -(e1_z * t_r - e1_r * t_z)
+        e2_z = -(e1_r * t_t - e1_t * t_r)
+        o_r, o_t, o_z = x * e1_r + y * e2_r, x * e1_t + y * e2_t, x * e1_z + y * e2_z
+    radial = rad + o_r
+    return np.stack([radial * sin + o_t * cos, radial * cos - o_t * sin, height + o_z], axis=-1)
 
 
 def raw_yarn(levels: list[Level], rng: np.random.Generator, length: float = YARN_LENGTH_MM,

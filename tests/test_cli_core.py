@@ -1,0 +1,77 @@
+"""`ipm sample` / `ipm curves` as a user runs them, bad input included."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from ipm.fibers import FiberSet
+from ipm.presets import preset
+
+
+def ipm(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "ipm", *map(str, args)], capture_output=True,
+                          text=True, cwd=cwd)
+
+
+def test_sample_preset_and_curves(tmp_path):
+    r = ipm("sample", "--preset", "golden", "-o", tmp_path / "p.json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "p.json").read_text())["n"] == 3
+    r = ipm("curves", tmp_path / "p.json", "-o", tmp_path / "y.npz", "--seed", 1)
+    assert r.returncode == 0, r.stderr
+    assert FiberSet.load_npz(tmp_path / "y.npz").num_fibers == 3 * 43 + 123
+    r = ipm("curves", tmp_path / "p.json", "-o", tmp_path / "y.txt", "--format", "mitsuba")
+    assert r.returncode == 0 and (tmp_path / "y.txt").read_text().count("\n\n") == 3 * 43 + 122
+
+
+def test_sample_seeded(tmp_path):
+    outs = [ipm("sample", "--seed", s).stdout for s in (3, 3, 4)]
+    assert outs[0] == outs[1] != outs[2]
+    assert json.loads(outs[0])["n"] in range(2, 7)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d.pop("alpha"), "missing parameter(s): alpha"),
+    (lambda d: d.update(m="many"), "m: expected an integer, got 'many'"),
+    (lambda d: d.update(R_ply=9.0), "R_ply = 9.0 is outside its allowed range [0.053, 1.486]"),
+])
+def test_bad_parameters_one_line_no_output(tmp_path, edit, message):
+    d = preset("rose").to_dict()
+    edit(d)
+    (tmp_path / "p.json").write_text(json.dumps(d))
+    r = ipm("curves", tmp_path / "p.json", "-o", tmp_path / "y.npz")
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1 and message in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "y.npz").exists()
+
+
+@pytest.mark.parametrize("content", [b"\x89PNG\r\n\x1a\n\x00\x00", b"{not json", b""])
+def test_unreadable_parameter_file(tmp_path, content):
+    (tmp_path / "p.json").write_bytes(content)
+    r = ipm("curves", tmp_path / "p.json", "-o", tmp_path / "y.npz")
+    assert r.returncode == 2 and r.stderr.startswith("error: ") and r.stderr.count("\n") == 1
+    assert not (tmp_path / "y.npz").exists()
+
+
+def test_missing_file_and_folder(tmp_path):
+    r = ipm("curves", tmp_path / "nope.json", "-o", tmp_path / "y.npz")
+    assert r.returncode == 2 and "nope.json" in r.stderr
+    r = ipm("sample", "-o", tmp_path / "no" / "p.json")
+    assert r.returncode == 2 and "does not exist" in r.stderr
+    r = ipm("sample", "--preset", "purple")
+    assert r.returncode == 2 and "unknown preset 'purple'" in r.stderr
+
+
+def test_existing_output_survives_a_failed_run(tmp_path):
+    out = tmp_path / "y.npz"
+    (tmp_path / "p.json").write_text(preset("golden").to_json())
+    assert ipm("curves", tmp_path / "p.json", "-o", out).returncode == 0
+    before = out.read_bytes()
+    (tmp_path / "p.json").write_text("{}")
+    assert ipm("curves", tmp_path / "p.json", "-o", out).returncode == 2
+    assert out.read_bytes() == before
+    assert np.load(out)["points"].dtype == np.float32
+    assert not [p for p in tmp_path.iterdir() if ".tmp" in p.name]

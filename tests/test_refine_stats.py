@@ -2,6 +2,7 @@
 
 import pytest
 import torch
+
 from ipm.refine.stats import GROUPS, YarnStatLoss, yarn_stat_loss, yarn_statistics
 
 

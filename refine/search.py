@@ -1,0 +1,144 @@
+"""Gradient-free search of the continuous yarn parameters with NLopt.
+
+The search runs in a box narrowed around the start (the nets' guess): ``width`` of each
+parameter's prior range on either side, clipped to the prior's box, mapped to [0, 1]^d so
+that every NLopt algorithm sees a well-scaled problem.  The objective is deterministic
+within one search (fixed fiber seed and render seed).  So as not to fit one seed's noise,
+the best few distinct candidates of the search and the start are scored again on
+``rescore_seeds`` (other fibers of the same parameters) and the winner is the one with the
+lowest mean loss over all seeds; if that is the start, the search could not improve on it
+and says so.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import nlopt
+import numpy as np
+
+from ipm.errors import UserError
+from ipm.params import PAPER_INTERVALS, YarnParams
+
+#: An objective: the loss of the yarn ``params`` rendered with fiber seed ``seed``.
+Objective = Callable[[YarnParams, int], float]
+
+ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_L")
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    """params: continuous parameters to search.  algorithm: an NLopt derivative-free
+    algorithm.  budget: objective evaluations of the search (re-scoring comes on top).
+    time_s: wall-time bound of the search.  width: half-width of the box around the start,
+    as a fraction of each parameter's prior range.  fiber_seed: the seed of the search's
+    objective; rescore_seeds, rescore_top: the re-scoring described in the module doc."""
+
+    params: tuple[str, ...] = ("alpha", "alpha_ply", "R_ply", "r_x", "r_y")
+    algorithm: str = "LN_BOBYQA"
+    budget: int = 80
+    time_s: float | None = None
+    width: float = 0.25
+    fiber_seed: int = 0
+    rescore_seeds: tuple[int, ...] = (1, 2)
+    rescore_top: int = 3
+
+    def __post_init__(self) -> None:
+        bad = [p for p in self.params if p not in PAPER_INTERVALS or PAPER_INTERVALS[p].integer]
+        if bad or not self.params:
+            raise UserError(f"cannot search {bad or 'no parameters'}: choose continuous "
+                            f"parameters of {', '.join(PAPER_INTERVALS)}")
+        if self.algorithm not in ALGORITHMS:
+            raise UserError(f"unknown algorithm {self.algorithm!r}; choose one of "
+                            f"{', '.join(ALGORITHMS)}")
+        if self.budget < 2 * len(self.params) + 2:
+            raise UserError(f"budget must be at least {2 * len(self.params) + 2} evaluations "
+                            f"for {len(self.params)} parameters, got {self.budget}")
+        if not 0 < self.width <= 1:
+            raise UserError(f"width must be in (0, 1], got {self.width}")
+
+
+@dataclass
+class SearchResult:
+    start: YarnParams
+    best: YarnParams
+    start_loss: float  # mean over all seeds
+    best_loss: float
+    improved: bool
+    trace: list[float] = field(default_factory=list)  # objective value per evaluation
+    evaluations: int = 0
+    seconds: float = 0.0
+
+
+def search_box(start: YarnParams, names: tuple[str, ...], width: float
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) of the search around ``start``, inside the prior's box."""
+    lo, hi = [], []
+    for k in names:
+        iv = PAPER_INTERVALS[k]
+        half = width * (iv.hi - iv.lo)
+        v = getattr(start, k)
+        lo.append(max(iv.lo, v - half))
+        hi.append(min(iv.hi, v + half))
+    return np.array(lo), np.array(hi)
+
+
+def search(objective: Objective, start: YarnParams, opts: SearchOptions = SearchOptions(),
+           on_eval: Callable[[int, float, float], None] | None = None) -> SearchResult:
+    """Minimise ``objective`` over ``opts.params`` from ``start``.
+
+    on_eval(evaluation, loss, best loss) is called after every evaluation (progress bars).
+    """
+    names = opts.params
+    lo, hi = search_box(start, names, opts.width)
+    span = np.where(hi > lo, hi - lo, 1.0)
+    t0 = time.perf_counter()
+    trace: list[float] = []
+    seen: dict[tuple, tuple[float, YarnParams]] = {}
+
+    def to_params(u: np.ndarray) -> YarnParams:
+        vals = lo + np.clip(u, 0, 1) * span
+        return start.replace(**{k: float(np.clip(v, PAPER_INTERVALS[k].lo, PAPER_INTERVALS[k].hi))
+                                for k, v in zip(names, vals, strict=True)})
+
+    def f(u: np.ndarray, grad: np.ndarray) -> float:
+        p = to_params(u)
+        loss = float(objective(p, opts.fiber_seed))
+        if not np.isfinite(loss):
+            loss = 1e6
+        trace.append(loss)
+        seen[tuple(np.round(u, 6))] = (loss, p)
+        if on_eval:
+            on_eval(len(trace), loss, min(trace))
+        return loss
+
+    u0 = np.clip((np.array([getattr(start, k) for k in names]) - lo) / span, 0, 1)
+    opt = nlopt.opt(getattr(nlopt, opts.algorithm), len(names))
+    opt.set_lower_bounds(np.zeros(len(names)))
+    opt.set_upper_bounds(np.ones(len(names)))
+    opt.set_min_objective(f)
+    opt.set_maxeval(opts.budget)
+    if opts.time_s:
+        opt.set_maxtime(opts.time_s)
+    opt.set_initial_step(0.15)
+    opt.set_xtol_rel(1e-3)
+    try:
+        opt.optimize(u0)
+    except (nlopt.RoundoffLimited, nlopt.ForcedStop):
+        pass  # the evaluations so far stand; the best of them is re-scored below
+
+    start_loss = float(objective(start, opts.fiber_seed))
+    candidates = sorted(seen.values(), key=lambda lp: lp[0])[: opts.rescore_top]
+    scored = [(_mean_loss(objective, start, start_loss, opts), start)]
+    scored += [(_mean_loss(objective, p, loss, opts), p) for loss, p in candidates]
+    best_loss, best = min(scored, key=lambda lp: lp[0])
+    return SearchResult(start=start, best=best, start_loss=scored[0][0], best_loss=best_loss,
+                        improved=best is not start, trace=trace, evaluations=len(trace),
+                        seconds=time.perf_counter() - t0)
+
+
+def _mean_loss(objective: Objective, p: YarnParams, search_loss: float,
+               opts: SearchOptions) -> float:
+    return float(np.mean([search_loss, *(objective(p, s) for s in opts.rescore_seeds)]))

@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 from ipm.benchmarks.machine import markdown_header
-from ipm.generator import generate, vertex_spacing, levels_of
+from ipm.generator import generate, levels_of, vertex_spacing
 from ipm.io import write_text
 from ipm.presets import preset
 

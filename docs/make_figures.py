@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from ipm.fibers import FiberKind, FiberSet
+from ipm.fibers import FiberSet
 from ipm.generator import Level, raw_yarn
 from ipm.sketch import side_view
 
@@ -32,7 +32,7 @@ def helix_mapping() -> Image.Image:
         img = side_view(fs, 8.0, 4.4, 60, colors=[(170, 170, 170)] * f)
         draw = ImageDraw.Draw(img)
         for i in range(v // 8, v, v // 6):
-            for x, y, z in fibers[:, i]:
+            for _, y, z in fibers[:, i]:
                 u, w = (z + 4.0) * 60, (2.2 - y) * 60
                 draw.ellipse([u - 2, w - 2, u + 2, w + 2], fill=(200, 30, 30))
         title = "global-axis shift (Zhao et al.)" if mapping == "global" else \

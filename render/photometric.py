@@ -1,0 +1,101 @@
+"""Photometric variation that real captures have, as explicit, seeded, recorded options.
+
+A :class:`PhotometricRanges` says how much variation a dataset gets; ``draw(rng)`` picks one
+:class:`Photometric` per sample, which the manifest records (``to_dict``) so that a sample can
+be re-rendered bit for bit.  The yarn's shift and rotation act on the geometry (the renderer
+places the fibers with them); exposure, white balance and sensor noise act on the linear
+image (:func:`apply_to_image`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ipm.errors import UserError
+
+
+@dataclass(frozen=True)
+class Photometric:
+    """One capture's deviations from the nominal scene.
+
+    exposure_stops: image gain 2**stops.  white_balance: (3,) per-channel gains (mean 1).
+    shift_mm: (dx, dy) of the yarn in the image plane (x right, y up).  rotation_deg: of the
+    yarn about the view direction.  noise: (a, b) of Poisson-Gaussian sensor noise, variance
+    a * x + b on the linear image x.  noise_seed: seed of that noise.
+    """
+
+    exposure_stops: float = 0.0
+    white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    shift_mm: tuple[float, float] = (0.0, 0.0)
+    rotation_deg: float = 0.0
+    noise: tuple[float, float] = (0.0, 0.0)
+    noise_seed: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Photometric:
+        try:
+            return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        except TypeError as e:
+            raise UserError(f"invalid photometric record {d!r}: {e}") from None
+
+
+NOMINAL = Photometric()
+
+
+@dataclass(frozen=True)
+class PhotometricRanges:
+    """Half-widths of uniform draws around the nominal capture (0 disables a variation).
+
+    exposure_stops: +-stops.  white_balance: +-relative gain of red and blue against green.
+    shift_mm: +-mm in x and y.  rotation_deg: +-degrees.  noise_a, noise_b: upper bounds of
+    the Poisson (gain) and Gaussian (read) noise terms, drawn in [0, bound].
+    """
+
+    exposure_stops: float = 0.3
+    white_balance: float = 0.06
+    shift_mm: tuple[float, float] = field(default=(0.5, 0.15))
+    rotation_deg: float = 1.5
+    noise_a: float = 2e-3
+    noise_b: float = 1e-5
+
+    def __post_init__(self) -> None:
+        values = {"exposure_stops": self.exposure_stops, "white_balance": self.white_balance,
+                  "shift_mm": max(self.shift_mm), "rotation_deg": self.rotation_deg,
+                  "noise_a": self.noise_a, "noise_b": self.noise_b}
+        for name, v in values.items():
+            if not 0 <= v < 1e3:
+                raise UserError(f"photometric range {name} must be >= 0, got {v}")
+        if self.white_balance >= 1:
+            raise UserError(f"white_balance range must be < 1, got {self.white_balance}")
+
+    def draw(self, rng: np.random.Generator) -> Photometric:
+        u = rng.uniform(-1.0, 1.0, size=6)
+        wb_r, wb_b = 1 + self.white_balance * u[1], 1 + self.white_balance * u[2]
+        gains = np.array([wb_r, 1.0, wb_b]) * 3 / (wb_r + 1 + wb_b)
+        noise = rng.uniform(0.0, 1.0, size=2) * (self.noise_a, self.noise_b)
+        return Photometric(
+            exposure_stops=float(self.exposure_stops * u[0]),
+            white_balance=tuple(float(g) for g in gains),
+            shift_mm=(float(self.shift_mm[0] * u[3]), float(self.shift_mm[1] * u[4])),
+            rotation_deg=float(self.rotation_deg * u[5]),
+            noise=(float(noise[0]), float(noise[1])),
+            noise_seed=int(rng.integers(0, 2**31 - 1)))
+
+
+NO_VARIATION = PhotometricRanges(0.0, 0.0, (0.0, 0.0), 0.0, 0.0, 0.0)
+
+
+def apply_to_image(image: np.ndarray, ph: Photometric) -> np.ndarray:
+    """Exposure, white balance and sensor noise on a linear image (H, W, 3) -> float32 copy."""
+    out = image * (2.0 ** ph.exposure_stops * np.asarray(ph.white_balance))
+    a, b = ph.noise
+    if a > 0 or b > 0:
+        rng = np.random.default_rng(ph.noise_seed)
+        out = out + np.sqrt(a * np.maximum(out, 0) + b) * rng.standard_normal(out.shape)
+    return np.maximum(out, 0).astype(np.float32)

@@ -1,0 +1,123 @@
+"""Render procedural yarns in THE scene, keeping compiled kernels across images.
+
+Mitsuba compiles a kernel per scene and resolution; a new seed, sample count or new curve
+buffers do not recompile.  A :class:`Renderer` therefore loads one scene per ``scale`` in
+its process and, per image, swaps the yarn's curve buffers (``yarn.control_points``,
+``yarn.segment_indices``, ``yarn.control_point_count``: world space) and fiber colour
+through ``mi.traverse``.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from ipm.fibers import FiberSet
+from ipm.generator import generate
+from ipm.io import atomic_path
+from ipm.params import YarnParams
+from ipm.render.photometric import NOMINAL, Photometric, apply_to_image
+from ipm.render.scene import DEFAULT_OPTIONS, SceneOptions, frame_size, scene_dict, yarn_to_world
+from ipm.render.variant import mitsuba
+
+#: A two-vertex fiber: the curve file the scenes are loaded with before any swap.
+_PLACEHOLDER_CURVE = "0 0 -1 0.01\n0 0 1 0.01\n"
+
+
+def world_curves(fibers: FiberSet, to_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mitsuba ``linearcurve`` buffers of a fiber set placed by ``to_world`` (4, 4).
+
+    Returns control points (V, 4) float32 (x, y, z, radius) in world mm, and segment indices
+    (S,) uint32: the first control point of every segment (all but each fiber's last).
+    """
+    xyz = fibers.points.astype(np.float64) @ to_world[:3, :3].T + to_world[:3, 3]
+    radius = np.repeat(fibers.round_radii(), np.diff(fibers.offsets))
+    points = np.column_stack([xyz, radius]).astype(np.float32)
+    last = np.zeros(len(points), dtype=bool)
+    last[fibers.offsets[1:] - 1] = True
+    return points, np.flatnonzero(~last).astype(np.uint32)
+
+
+class Renderer:
+    """Renders yarns in THE scene; one per process (kernels are compiled once per scale).
+
+    >>> r = Renderer()                                            # doctest: +SKIP
+    >>> img = r.render(preset("rose"), seed=0, scale=0.25, spp=4)  # doctest: +SKIP
+    >>> img.shape, img.dtype                                       # doctest: +SKIP
+    ((150, 500, 3), dtype('float32'))
+    """
+
+    def __init__(self, variant: str | None = None, options: SceneOptions = DEFAULT_OPTIONS,
+                 threads: int | None = None) -> None:
+        self.mi = mitsuba(variant)
+        self.options = options
+        self._scenes: dict[float, tuple[object, object]] = {}
+        if threads is not None:
+            import drjit as dr
+
+            dr.set_thread_count(threads)
+
+    @property
+    def variant(self) -> str:
+        return self.mi.variant()
+
+    def _scene(self, scale: float) -> tuple[object, object]:
+        if scale not in self._scenes:
+            with tempfile.TemporaryDirectory(prefix="ipm-scene-") as tmp:
+                curves = Path(tmp, "placeholder.txt")
+                curves.write_text(_PLACEHOLDER_CURVE)
+                scene = self.mi.load_dict(scene_dict(scale, 1, str(curves), (0.5, 0.5, 0.5),
+                                                     self.options))
+            self._scenes[scale] = (scene, self.mi.traverse(scene))
+        return self._scenes[scale]
+
+    def render_fibers(self, fibers: FiberSet, color: tuple[float, float, float], scale: float,
+                      spp: int, render_seed: int = 0, to_world: np.ndarray | None = None
+                      ) -> np.ndarray:
+        """Linear RGB image (H, W, 3) float32 of ``fibers`` (generator frame) with albedo
+        ``color``, placed by ``to_world`` (default: :func:`yarn_to_world` centred)."""
+        if spp < 1:
+            raise ValueError(f"spp must be >= 1, got {spp}")
+        frame_size(scale)  # validates the scale
+        scene, params = self._scene(scale)
+        points, segments = world_curves(fibers, yarn_to_world() if to_world is None
+                                        else to_world)
+        params["yarn.control_points"] = self.mi.Float(points.ravel())
+        params["yarn.segment_indices"] = self.mi.UInt32(segments)
+        params["yarn.control_point_count"] = len(points)
+        params["yarn.bsdf.base_color.value"] = self.mi.Color3f(*color)
+        params.update()
+        image = self.mi.render(scene, spp=spp, seed=render_seed)
+        return np.array(image, dtype=np.float32)[..., :3]
+
+    def render(self, params: YarnParams, seed: int, scale: float, spp: int,
+               render_seed: int = 0, photometric: Photometric = NOMINAL) -> np.ndarray:
+        """Linear RGB image (H, W, 3) float32 of the yarn ``generate(params, seed)``, with
+        the capture variation ``photometric`` applied (geometry and image)."""
+        to_world = yarn_to_world(photometric.shift_mm, photometric.rotation_deg)
+        image = self.render_fibers(generate(params, seed), params.color, scale, spp,
+                                   render_seed, to_world)
+        return apply_to_image(image, photometric) if photometric != NOMINAL else image
+
+
+def to_srgb8(image: np.ndarray) -> np.ndarray:
+    """Linear RGB (H, W, 3) float -> 8-bit sRGB (H, W, 3) uint8 (the sRGB curve, clipped)."""
+    x = np.clip(image, 0.0, 1.0)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.round(srgb * 255.0).astype(np.uint8)
+
+
+def srgb8_to_linear(image: np.ndarray) -> np.ndarray:
+    """8-bit sRGB (H, W, 3) uint8 -> linear RGB float32 in [0, 1]."""
+    x = image.astype(np.float32) / 255.0
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def save_png(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write a linear image (H, W, 3) float as an 8-bit sRGB RGB PNG, atomically."""
+    with atomic_path(path) as tmp:
+        Image.fromarray(to_srgb8(image), "RGB").save(tmp, format="PNG")

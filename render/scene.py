@@ -1,0 +1,156 @@
+"""THE scene: a 1:1 macro photo of a yarn in a simple lab capture, as a ``mi.load_dict`` dict.
+
+Dataset generation, the nets' training crops and every render of the refine loop call
+:func:`scene_dict` with a resolution ``scale`` and a sample count, so they all see the same
+camera, lights, backdrop and fiber material.
+
+World frame (mm): image right = +x, image up = +y, the camera looks down -z.  The yarn lies
+along x through the origin (generator axis z -> world x, generator x -> world y, generator
+y -> world z: a cyclic permutation, so a rotation).
+
+* Camera: orthographic.  A 90 mm macro lens at 1:1 sees the yarn at ~30 cm through a ~3 cm
+  aperture, so perspective across the yarn's few mm of depth changes the magnification by
+  about 1 %; an orthographic view makes the pixel pitch exact everywhere
+  (:data:`ipm.frame.PIXEL_SIZE_MM` / ``scale``) and so an image tells absolute sizes.
+* Light: two soft boxes above-left and above-right in front of the yarn (the usual two-lamp
+  copy stand) and a dim uniform room light; the backdrop is a matte dark-grey card far enough
+  behind the yarn (50 mm) that no flyaway crosses it and out of the lights' specular path.
+* Fibers: Mitsuba's ``principled`` BSDF with the yarn's albedo as base colour, a rough
+  specular lobe and sheen (the soft grazing highlight of textile fibers).  Measured against
+  Mitsuba's ``hair`` BSDF (Chiang et al. 2016, the model behind the Blender shader the paper
+  used) with Chiang's colour-to-absorption mapping, on the ``rose`` and ``blue`` presets at
+  1000 x 300 px, 16 spp: ``hair`` took 4.5-5.1 s (depth 5, needed for light through fibers)
+  against 2.6-3.1 s (depth 3), was much noisier (glints) and came out dark and desaturated
+  under these lights; ``principled`` reproduces the yarn's colour.
+* Pixels integrate their footprint with a box filter, like a sensor pixel; a Gaussian
+  reconstruction filter cost 2.5x the render time here (its splats are scattered adds).
+* Cross-sections: Mitsuba's curves are round; each fiber gets the radius sqrt(t_x t_y) of
+  the circle with its ellipse's area (:meth:`ipm.FiberSet.round_radii`).  The silhouette
+  width of an ellipse seen from random directions averages its perimeter / pi, which for the
+  sampler's t_x/t_y <= 2.5 is at most 4 % more than 2 sqrt(t_x t_y); that is a fraction of a
+  pixel at any scale we render, while the highlight change the paper shows (its Fig. 9 a-c)
+  is lost.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ipm.errors import UserError
+from ipm.frame import FRAME_HEIGHT_PX, FRAME_WIDTH_PX, PIXEL_SIZE_MM
+
+#: Generator frame (x, y, z) -> world frame: the yarn axis z becomes the image horizontal.
+GENERATOR_TO_WORLD = np.array([[0, 0, 1], [1, 0, 0], [0, 1, 0]], dtype=np.float64)
+BACKDROP_DEPTH_MM = 50.0
+CAMERA_DISTANCE_MM = 300.0
+
+
+@dataclass(frozen=True)
+class SceneOptions:
+    """What stays fixed across a dataset: fiber roughness and sheen, lights, backdrop, depth.
+
+    roughness, sheen: of the fibers' principled BSDF.  backdrop: albedo of the grey card.
+    key_light: radiance of the left soft box (the right one has 0.6 of it).  room_light:
+    uniform fill radiance.  max_depth: path length (3 = one bounce of light between fibers).
+    """
+
+    roughness: float = 0.5
+    sheen: float = 0.5
+    backdrop: float = 0.05
+    key_light: float = 4.0
+    room_light: float = 0.15
+    max_depth: int = 3
+
+    def __post_init__(self) -> None:
+        if not 0.01 <= self.roughness <= 1:
+            raise UserError(f"roughness must be in [0.01, 1], got {self.roughness}")
+        if not 0 <= self.sheen <= 1:
+            raise UserError(f"sheen must be in [0, 1], got {self.sheen}")
+        if not 0 <= self.backdrop <= 1:
+            raise UserError(f"backdrop albedo must be in [0, 1], got {self.backdrop}")
+        if self.max_depth < 2:
+            raise UserError(f"max_depth must be >= 2, got {self.max_depth}")
+
+
+DEFAULT_OPTIONS = SceneOptions()
+
+
+def frame_size(scale: float) -> tuple[int, int]:
+    """(width, height) in pixels of the frame at ``scale`` (1 = 2000 x 600)."""
+    if not 0.05 <= scale <= 2:
+        raise UserError(f"scale must be in [0.05, 2], got {scale}")
+    return round(FRAME_WIDTH_PX * scale), round(FRAME_HEIGHT_PX * scale)
+
+
+def pixel_size_mm(scale: float) -> float:
+    """Size of one pixel at the yarn, in mm, at ``scale``."""
+    return PIXEL_SIZE_MM / scale
+
+
+def yarn_to_world(shift_mm: tuple[float, float] = (0.0, 0.0), rotation_deg: float = 0.0
+                  ) -> np.ndarray:
+    """(4, 4) transform of generator coordinates into the world: the axis permutation, a
+    rotation about the view direction and a shift in the image plane (x right, y up)."""
+    a = math.radians(rotation_deg)
+    rot = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
+    m = np.eye(4)
+    m[:3, :3] = rot @ GENERATOR_TO_WORLD
+    m[:2, 3] = shift_mm
+    return m
+
+
+def fiber_bsdf(color: tuple[float, float, float], opts: SceneOptions) -> dict[str, Any]:
+    """The fibers' BSDF; ``base_color`` is swapped per yarn through ``mi.traverse``."""
+    return {"type": "principled", "base_color": {"type": "rgb", "value": list(color)},
+            "roughness": opts.roughness, "specular": 0.4, "sheen": opts.sheen}
+
+
+def _soft_box(position: tuple[float, float, float], size_mm: float, power: float
+              ) -> dict[str, Any]:
+    import mitsuba as mi
+
+    t = mi.ScalarTransform4f().look_at(origin=position, target=[0, 0, 0], up=[0, 1, 0])
+    return {"type": "rectangle", "to_world": t @ mi.ScalarTransform4f().scale(size_mm / 2),
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [power] * 3}}}
+
+
+def scene_dict(scale: float, spp: int, curves: str, color: tuple[float, float, float],
+               opts: SceneOptions = DEFAULT_OPTIONS,
+               to_world: np.ndarray | None = None) -> dict[str, Any]:
+    """The scene for :func:`mi.load_dict`, rendering at ``scale`` x (2000 x 600) px.
+
+    curves: a Mitsuba ``linearcurve`` file (``x y z radius`` in generator coordinates, see
+    :meth:`ipm.FiberSet.save_mitsuba`); the shape's id is ``yarn`` so that
+    ``yarn.control_points`` (world space) can be swapped through ``mi.traverse``.
+    color: linear RGB albedo of the fibers.  to_world: (4, 4) from :func:`yarn_to_world`.
+    Needs the Mitsuba variant set (:func:`ipm.render.variant.mitsuba`).
+    """
+    import mitsuba as mi
+
+    width, height = frame_size(scale)
+    half_width = width * pixel_size_mm(scale) / 2
+    T = mi.ScalarTransform4f
+    camera = (T().look_at(origin=[0, 0, CAMERA_DISTANCE_MM], target=[0, 0, 0], up=[0, 1, 0])
+              @ T().scale([half_width, half_width, 1]))
+    matrix = yarn_to_world() if to_world is None else to_world
+    return {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": opts.max_depth, "hide_emitters": True},
+        "sensor": {"type": "orthographic", "to_world": camera,
+                   "sampler": {"type": "independent", "sample_count": spp},
+                   "film": {"type": "hdrfilm", "width": width, "height": height,
+                            "pixel_format": "rgb", "rfilter": {"type": "box"}}},
+        "yarn": {"type": "linearcurve", "filename": curves, "to_world": T(matrix.tolist()),
+                 "bsdf": fiber_bsdf(color, opts)},
+        "backdrop": {"type": "rectangle",
+                     "to_world": T().translate([0, 0, -BACKDROP_DEPTH_MM]) @ T().scale(200),
+                     "bsdf": {"type": "diffuse",
+                              "reflectance": {"type": "rgb", "value": [opts.backdrop] * 3}}},
+        "key_left": _soft_box((-150.0, 150.0, 200.0), 150.0, opts.key_light),
+        "key_right": _soft_box((150.0, 120.0, 200.0), 150.0, 0.6 * opts.key_light),
+        "room": {"type": "constant", "radiance": {"type": "rgb", "value": opts.room_light}},
+    }

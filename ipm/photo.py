@@ -1,0 +1,135 @@
+"""Load a user's yarn photo and bring it to the scene's pixel pitch (Pillow + numpy only).
+
+The nets and the refiner compare photos with renders of the scene, which has a fixed pixel
+size at the yarn (:data:`ipm.frame.PIXEL_SIZE_MM` at full resolution, ``PIXEL_SIZE_MM /
+scale`` at a resolution scale).  A photo of another magnification is resampled so that one
+of its pixels covers the same millimetres as one pixel of the scene.
+
+Values are **sRGB-encoded** (as stored in the file, like the 8-bit sRGB PNGs of the
+dataset), float32 in [0, 1], shape ``(H, W, 3)``.  Use :func:`srgb_to_linear` for linear
+light.
+
+>>> from ipm.photo import load_photo
+>>> img = load_photo("yarn.png", pixel_size_mm=0.02, scale=0.25)  # doctest: +SKIP
+>>> img.shape, img.dtype  # doctest: +SKIP
+((150, 500, 3), dtype('float32'))
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import numpy as np
+from PIL import Image, ImageOps, UnidentifiedImageError
+
+from ipm.errors import UserError
+from ipm.frame import PIXEL_SIZE_MM
+
+#: Photos above this many pixels are refused before decoding (a 100 MP camera is the limit).
+MAX_PIXELS = 120_000_000
+
+
+def read_image(path: str | os.PathLike, max_pixels: int = MAX_PIXELS) -> np.ndarray:
+    """Decode any still image Pillow reads into ``(H, W, 3)`` float32 sRGB in [0, 1].
+
+    8- and 16-bit, grayscale (replicated to three channels), palette, CMYK and alpha
+    (composited over black, the colour of the scene's dark backdrop) are accepted; the EXIF
+    orientation of camera files is applied.  Raises :class:`UserError` with one line for a
+    missing, unreadable, non-image, truncated or absurdly large file.
+    """
+    name = os.fspath(path)
+    if os.path.isdir(name):
+        raise UserError(f"{name} is a folder, not an image")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            with Image.open(name) as im:
+                w, h = im.size
+                if w * h > max_pixels:
+                    raise UserError(f"{name}: {w}x{h} px is too large "
+                                    f"(at most {max_pixels // 1_000_000} MP)")
+                im.load()
+                im = ImageOps.exif_transpose(im)
+                return _to_rgb_float(im)
+    except FileNotFoundError:
+        raise UserError(f"{name}: no such file") from None
+    except PermissionError:
+        raise UserError(f"{name}: permission denied") from None
+    except UnidentifiedImageError:
+        raise UserError(f"{name} is not an image Pillow can read") from None
+    except (Image.DecompressionBombError, Image.DecompressionBombWarning):
+        raise UserError(f"{name} is too large to decode safely") from None
+    except (OSError, SyntaxError, ValueError) as e:
+        # Pillow reports truncated or corrupt data as OSError ("image file is truncated").
+        if isinstance(e, UserError):
+            raise
+        raise UserError(f"{name}: cannot decode the image ({e})") from None
+
+
+def _to_rgb_float(im: Image.Image) -> np.ndarray:
+    if im.mode in ("I;16", "I;16B", "I;16L", "I;16N", "I"):
+        # 16-bit grayscale; 32-bit "I" from 16-bit PNGs holds 0..65535.
+        g = np.asarray(im, dtype=np.float32) / 65535.0
+        return np.repeat(np.clip(g, 0, 1)[..., None], 3, axis=2)
+    if im.mode == "F":
+        g = np.asarray(im, dtype=np.float32)
+        return np.repeat(np.clip(g, 0, 1)[..., None], 3, axis=2)
+    has_alpha = im.mode in ("RGBA", "LA", "PA", "RGBa", "La") or (
+        im.mode == "P" and "transparency" in im.info)
+    if has_alpha:
+        rgba = np.asarray(im.convert("RGBA"), dtype=np.float32) / 255.0
+        return np.ascontiguousarray(rgba[..., :3] * rgba[..., 3:])
+    return np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+
+
+def to_scene_pitch(img: np.ndarray, pixel_size_mm: float, scale: float = 1.0) -> np.ndarray:
+    """Resample ``(H, W, 3)`` so that one pixel covers ``PIXEL_SIZE_MM / scale`` mm.
+
+    ``pixel_size_mm`` is the size of one photo pixel at the yarn.  Downsampling averages
+    (box filter, no aliasing of fiber-scale detail); upsampling is bicubic.
+    """
+    if not (np.isfinite(pixel_size_mm) and pixel_size_mm > 0):
+        raise UserError(f"pixel size must be a positive number of mm, got {pixel_size_mm}")
+    if not (np.isfinite(scale) and scale > 0):
+        raise UserError(f"scale must be positive, got {scale}")
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"expected an (H, W, 3) image, got shape {img.shape}")
+    factor = pixel_size_mm * scale / PIXEL_SIZE_MM
+    h, w = img.shape[:2]
+    size = (max(1, round(w * factor)), max(1, round(h * factor)))
+    if size == (w, h):
+        return img.astype(np.float32, copy=False)
+    resample = Image.Resampling.BOX if factor < 1 else Image.Resampling.BICUBIC
+    chans = [np.asarray(Image.fromarray(np.ascontiguousarray(img[..., c], np.float32), mode="F")
+                        .resize(size, resample)) for c in range(3)]
+    return np.clip(np.stack(chans, axis=2), 0, 1).astype(np.float32)
+
+
+def load_photo(path: str | os.PathLike, pixel_size_mm: float = PIXEL_SIZE_MM,
+               scale: float = 1.0, min_size: tuple[int, int] | None = None) -> np.ndarray:
+    """:func:`read_image` then :func:`to_scene_pitch`.  ``min_size`` = (H, W) needed after
+    resampling (e.g. the nets' input crop); a smaller photo raises a :class:`UserError`
+    that says how many photo pixels are needed at this pixel size."""
+    img = to_scene_pitch(read_image(path), pixel_size_mm, scale)
+    if min_size is not None and (img.shape[0] < min_size[0] or img.shape[1] < min_size[1]):
+        factor = pixel_size_mm * scale / PIXEL_SIZE_MM
+        need_w, need_h = (int(np.ceil(v / factor)) for v in (min_size[1], min_size[0]))
+        raise UserError(f"{os.fspath(path)} is too small: at {pixel_size_mm:g} mm per pixel "
+                        f"the nets need a photo of at least {need_w}x{need_h} px "
+                        f"({min_size[1] * PIXEL_SIZE_MM / scale:g} x "
+                        f"{min_size[0] * PIXEL_SIZE_MM / scale:g} mm of yarn)")
+    return img
+
+
+def srgb_to_linear(x: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function, inverted (IEC 61966-2-1)."""
+    x = np.asarray(x, dtype=np.float32)
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(x: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function (IEC 61966-2-1); input clipped to [0, 1]."""
+    x = np.clip(np.asarray(x, dtype=np.float32), 0, 1)
+    return np.where(x <= 0.0031308, 12.92 * x,
+                    1.055 * x ** (1 / 2.4) - 0.055).astype(np.float32)

@@ -1,0 +1,164 @@
+"""Options of the nets' commands: one frozen dataclass per command (its defaults are the
+command's defaults, its fields are saved with a run) and the named training presets."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from ipm.errors import UserError
+from ipm.frame import PIXEL_SIZE_MM
+from ipm.nets.encoders import ENCODERS
+from ipm.nets.tasks import ENSEMBLE_TASKS, REG_TASKS, TASKS
+
+
+@dataclass(frozen=True)
+class Preset:
+    """Which nets to train and which of them add the domain-adaptation losses."""
+
+    tasks: tuple[str, ...]
+    recon: bool = False
+    latent: bool = False
+    #: The paper trains the flyaway net with L_regress alone in every variant.
+    adapted: tuple[str, ...] = ()
+    help: str = ""
+
+
+_REG = tuple(t.name for t in REG_TASKS)
+PRESETS: dict[str, Preset] = {
+    "ensemble": Preset(tuple(t.name for t in ENSEMBLE_TASKS),
+                       help="one net per raw-yarn parameter (n and the fiber thickness as "
+                            "classes) plus the flyaway net: the paper's best"),
+    "reg": Preset(_REG, help="Reg: one net for all raw-yarn parameters, one for flyaways"),
+    "reg-ae": Preset(_REG, recon=True, adapted=("raw",),
+                     help="Reg^ae: Reg + decoder, L_regress + lambda_recon L_recon"),
+    "reg-latent": Preset(_REG, latent=True, adapted=("raw",),
+                         help="Reg_latent: Reg + lambda_latent L_latent (needs --real)"),
+    "reg-ae-latent": Preset(_REG, recon=True, latent=True, adapted=("raw",),
+                            help="Reg^ae_latent: both (needs --real)"),
+}
+
+#: The paper's training (Experiments): full-width ResNet at 1200 x 584, 1000 epochs, batch
+#: 32, Adam at 1e-4 -- days on a CPU, hours on GPUs.
+PAPER = dict(encoder="resnet18", width=1.0, input_scale=1.0, epochs=1000, batch_size=32,
+             lr=1e-4)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """``ipm train``.  The defaults are sized for a 2-core CPU (see the model card):
+    ResNet18 at half width on inputs at a quarter of the scene's resolution."""
+
+    data: Path
+    val: Path
+    out: Path
+    preset: str = "ensemble"
+    real: Path | None = None
+    nets: tuple[str, ...] = ()
+    encoder: str = "resnet18"
+    width: float = 0.5
+    input_scale: float = 0.25
+    epochs: int = 12
+    batch_size: int = 32
+    lr: float = 1e-3
+    lambda_recon: float = 1.0
+    lambda_latent: float = 0.1
+    sma_batches: int = 5
+    exposure_ev: float = 0.5
+    steps_per_epoch: int | None = None
+    seed: int = 0
+    device: str = "cpu"
+    workers: int = 0
+    real_pixel_size: float = PIXEL_SIZE_MM
+    real_invert: bool = False
+
+    def __post_init__(self) -> None:
+        if self.preset not in PRESETS:
+            raise UserError(f"unknown preset {self.preset!r}; one of {', '.join(PRESETS)}")
+        p = PRESETS[self.preset]
+        bad = [n for n in self.nets if n not in p.tasks]
+        if bad:
+            raise UserError(f"preset {self.preset} has no net {', '.join(bad)}; "
+                            f"its nets: {', '.join(p.tasks)}")
+        if p.latent and self.real is None:
+            raise UserError(f"preset {self.preset} needs unlabelled real photos: --real DIR")
+        if self.encoder not in ENCODERS:
+            raise UserError(f"unknown encoder {self.encoder!r}; one of {', '.join(ENCODERS)}")
+        checks = [("width", self.width, 0 < self.width <= 4),
+                  ("input scale", self.input_scale, 0 < self.input_scale <= 1),
+                  ("epochs", self.epochs, self.epochs >= 1),
+                  ("batch size", self.batch_size, self.batch_size >= 1),
+                  ("learning rate", self.lr, self.lr > 0),
+                  ("lambda_recon", self.lambda_recon, self.lambda_recon >= 0),
+                  ("lambda_latent", self.lambda_latent, self.lambda_latent >= 0),
+                  ("SMA batches", self.sma_batches, self.sma_batches >= 1),
+                  ("exposure range", self.exposure_ev, self.exposure_ev >= 0),
+                  ("steps per epoch", self.steps_per_epoch,
+                   self.steps_per_epoch is None or self.steps_per_epoch >= 1),
+                  ("workers", self.workers, self.workers >= 0),
+                  ("real pixel size", self.real_pixel_size, self.real_pixel_size > 0)]
+        for name, value, ok in checks:
+            if not ok:
+                raise UserError(f"{name} = {value} is out of range")
+        if self.device.split(":")[0] not in ("cpu", "cuda", "mps"):
+            raise UserError(f"unknown device {self.device!r} (cpu, cuda, cuda:N, mps)")
+        for name in ("data", "val", "real"):
+            folder = getattr(self, name)
+            if folder is not None and not Path(folder).is_dir():
+                raise UserError(f"--{name} {folder} is not a folder")
+
+    @classmethod
+    def paper(cls, **overrides: Any) -> TrainConfig:
+        """The paper's configuration, with ``overrides`` on top."""
+        return cls(**{**PAPER, **overrides})
+
+    @property
+    def tasks(self) -> tuple[str, ...]:
+        return self.nets or PRESETS[self.preset].tasks
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(self).items()}
+
+    def replace(self, **changes: Any) -> TrainConfig:
+        return replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class PredictConfig:
+    """``ipm predict``: the photo, its pixel size at the yarn, the models, crops to average."""
+
+    photo: Path
+    models: Path | None = None
+    pixel_size: float = PIXEL_SIZE_MM
+    crops: int = 3
+    invert: bool = False
+    device: str = "cpu"
+
+    def __post_init__(self) -> None:
+        if not self.pixel_size > 0:
+            raise UserError(f"pixel size must be positive, got {self.pixel_size}")
+        if not 1 <= self.crops <= 64:
+            raise UserError(f"crops must be in 1..64, got {self.crops}")
+
+
+@dataclass(frozen=True)
+class SaliencyConfig:
+    """``ipm saliency``: the photo, the parameter (or net) whose prediction is explained."""
+
+    photo: Path
+    param: str
+    models: Path | None = None
+    pixel_size: float = PIXEL_SIZE_MM
+    invert: bool = False
+
+    def __post_init__(self) -> None:
+        if not self.pixel_size > 0:
+            raise UserError(f"pixel size must be positive, got {self.pixel_size}")
+        from ipm.params import PAPER_INTERVALS
+
+        known = {*PAPER_INTERVALS, *TASKS}
+        if self.param not in known:
+            raise UserError(f"unknown parameter or net {self.param!r}; one of "
+                            f"{', '.join(sorted(known))}")
+

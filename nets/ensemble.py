@@ -1,0 +1,101 @@
+"""Inference: an ensemble of trained nets -> :class:`~ipm.params.YarnParams` from a photo.
+
+>>> from ipm.nets.ensemble import Ensemble
+>>> from ipm.photo import read_image
+>>> ens = Ensemble.load()                       # the models shipped with ipm  # doctest: +SKIP
+>>> params = ens.predict(read_image("yarn.png"), pixel_size_mm=0.01)        # doctest: +SKIP
+
+Each net sees the photo at its own pixel pitch (``PIXEL_SIZE_MM / input_scale``); its
+outputs are averaged over a few crops evenly spaced along the yarn (class probabilities for
+``n`` and the thickness class).  Parameters no net decides (fiber colour, the fourth
+hierarchy level) keep :class:`YarnParams`' defaults.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ipm.errors import UserError
+from ipm.frame import PIXEL_SIZE_MM
+from ipm.nets.data import centre_crops
+from ipm.nets.model import YarnNet
+from ipm.nets.store import load_net, read_json
+from ipm.params import PARAM_ORDER, YarnParams
+from ipm.photo import to_scene_pitch
+
+ENSEMBLE = "ensemble.json"
+#: Default models, shipped inside the package.
+SHIPPED = Path(__file__).parent / "models"
+
+
+@dataclass
+class Ensemble:
+    """Trained nets that together decide every parameter of :data:`PARAM_ORDER`."""
+
+    nets: dict[str, YarnNet]
+    info: dict[str, dict]
+    folder: Path
+
+    @classmethod
+    def load(cls, folder: str | Path | None = None, device: str = "cpu") -> Ensemble:
+        """Load the nets listed in ``folder/ensemble.json`` (default: the shipped ones)."""
+        folder = Path(folder) if folder is not None else SHIPPED
+        if not (folder / ENSEMBLE).is_file():
+            hint = ("no default models are shipped in this build of ipm yet; train them with "
+                    "`ipm train --preset ensemble --data DIR --val DIR --out runs/x` and pass "
+                    "--models runs/x" if folder == SHIPPED else
+                    "train with `ipm train ... --out DIR`")
+            raise UserError(f"{folder} holds no trained models ({ENSEMBLE} missing); {hint}")
+        manifest = read_json(folder / ENSEMBLE)
+        names = manifest.get("nets") if isinstance(manifest, dict) else None
+        if not isinstance(names, list) or not names:
+            raise UserError(f"{folder / ENSEMBLE} lists no nets")
+        nets, info = {}, {}
+        for name in names:
+            nets[name], info[name] = load_net(folder / str(name), device)
+        decided = {k for net in nets.values() for k in net.config.spec.decides}
+        missing = [k for k in PARAM_ORDER if k not in decided]
+        if missing:
+            raise UserError(f"the models in {folder} do not predict {', '.join(missing)} "
+                            "(an unfinished run? train the remaining nets)")
+        return cls(nets, info, folder)
+
+    @torch.no_grad()
+    def outputs(self, image: np.ndarray, pixel_size_mm: float = PIXEL_SIZE_MM,
+                crops: int = 3) -> dict[str, np.ndarray]:
+        """Each net's output ``(K,)`` for an ``(H, W, 3)`` sRGB image in [0, 1] whose pixels
+        are ``pixel_size_mm`` wide at the yarn, averaged over ``crops`` crops."""
+        if image.ndim != 3 or image.shape[2] != 3:
+            raise ValueError(f"expected an (H, W, 3) image, got shape {image.shape}")
+        scaled: dict[float, np.ndarray] = {}
+        result = {}
+        for name, net in self.nets.items():
+            s = net.config.input_scale
+            if s not in scaled:
+                scaled[s] = to_scene_pitch(image, pixel_size_mm, s)
+            (ch, cw), (h, w) = net.config.crop, scaled[s].shape[:2]
+            if h < ch or w < cw:
+                f = pixel_size_mm * s / PIXEL_SIZE_MM
+                raise UserError(
+                    f"the photo ({image.shape[1]}x{image.shape[0]} px) is too small: at "
+                    f"{pixel_size_mm:g} mm per pixel the nets need at least "
+                    f"{int(np.ceil(cw / f))}x{int(np.ceil(ch / f))} px "
+                    f"({cw * PIXEL_SIZE_MM / s:g} x {ch * PIXEL_SIZE_MM / s:g} mm of yarn)")
+            x = centre_crops(scaled[s], net.config.crop, crops)
+            device = next(net.parameters()).device
+            result[name] = net.predict(x.to(device)).mean(0).cpu().numpy()
+        return result
+
+    def predict(self, image: np.ndarray, pixel_size_mm: float = PIXEL_SIZE_MM,
+                crops: int = 3, base: YarnParams | None = None) -> YarnParams:
+        """The inferred parameters; fields no net decides come from ``base``."""
+        values: dict = {}
+        for name, out in self.outputs(image, pixel_size_mm, crops).items():
+            values.update(self.nets[name].config.spec.decode(out))
+        extra = {} if base is None else {k: v for k, v in base.to_dict().items()
+                                         if k not in PARAM_ORDER}
+        return YarnParams(**values, **extra)

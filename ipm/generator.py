@@ -29,7 +29,10 @@ Conventions and deviations (the paper leaves these open):
 * Flyaways (Alg. 2): the segment length is arc length along the source fiber; a segment that
   cannot be found in 64 rejection rounds is clipped to its fiber.  Loops use
   ``o_i = d sin(i pi / (J - 1)) (v_x, v_y, 0)`` so both end vertices stay put, with
-  ``d = |d_mean + d_std R|``.  Hairs are squeezed along the axis about their root by
+  ``d = |d_mean + d_std R|``.  Eq. 10 writes ``v`` without a vertex index; we read it as one
+  radial vector per loop, the segment's middle vertex, so a loop is an arch pulled out of
+  the yarn.  (With each vertex's own ``v_i`` the copied helix balloons into a spiral around
+  the yarn that, seen from the side, is a sine wave, unlike the loops of real yarns.)  Hairs are squeezed along the axis about their root by
   ``1 - s / 2`` (the paper gives no formula; ``s = 0`` must leave the hair unsqueezed, Fig. 6
   f) and then rotated about the root so that the root-to-tip chord makes the angle ``beta``
   with the yarn axis, leaning outwards.
@@ -233,11 +236,12 @@ def hair(segment: np.ndarray, beta: float, s: float) -> np.ndarray:
 
 
 def loop(segment: np.ndarray, d: float) -> np.ndarray:
-    """A loop flyaway: radial half-sine offset of amplitude ``d`` (Eq. 10), ends fixed."""
+    """A loop flyaway: half-sine offset ``d sin(i pi / (J - 1)) (v_x, v_y, 0)`` along the
+    radial vector ``v`` of the segment's middle vertex (Eq. 10), ends fixed."""
     i = np.arange(len(segment))
-    offset = d * np.sin(i * np.pi / (len(segment) - 1))
+    radial = segment[len(segment) // 2, :2]
     out = segment.copy()
-    out[:, :2] *= 1 + offset[:, None]
+    out[:, :2] += d * np.sin(i * np.pi / (len(segment) - 1))[:, None] * radial
     return out
 
 

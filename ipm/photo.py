@@ -33,7 +33,8 @@ MAX_PIXELS = 120_000_000
 def read_image(path: str | os.PathLike, max_pixels: int = MAX_PIXELS) -> np.ndarray:
     """Decode any still image Pillow reads into ``(H, W, 3)`` float32 sRGB in [0, 1].
 
-    8- and 16-bit, grayscale (replicated to three channels), palette, CMYK and alpha
+    8- and 16-bit (Pillow reads 16-bit colour at 8-bit precision, 16-bit grayscale in
+    full), grayscale (replicated to three channels), palette, CMYK and alpha
     (composited over black, the colour of the scene's dark backdrop) are accepted; the EXIF
     orientation of camera files is applied.  Raises :class:`UserError` with one line for a
     missing, unreadable, non-image, truncated or absurdly large file.

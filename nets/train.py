@@ -123,7 +123,7 @@ def baseline(task: Task, train_targets: np.ndarray, val_targets: np.ndarray) -> 
 def summary_line(task: Task, m: dict) -> str:
     if task.is_classification:
         return f"accuracy {100 * m['accuracy']:.1f}%"
-    return "  ".join(f"{k} {m['mae'][k]:.4g}{PAPER_INTERVALS[k].unit} "
+    return "  ".join(f"{k} {m['mae'][k]:.4g}{(' ' + PAPER_INTERVALS[k].unit).rstrip()} "
                      f"({m['mae_pct'][k]:.1f}%)" for k in task.params)
 
 
@@ -247,7 +247,12 @@ class _progress:
     """A rich progress bar over one epoch on rank 0; a no-op elsewhere."""
 
     def __init__(self, show: bool, title: str, total: int) -> None:
-        self.show, self.title, self.total = show, title, total
+        from rich.console import Console
+
+        self.console = Console(stderr=True)
+        # Not on a terminal (logs, CI): the per-epoch lines suffice.
+        self.show = show and self.console.is_terminal
+        self.title, self.total = title, total
 
     def __enter__(self) -> Callable[[float], None]:
         if not self.show:
@@ -263,7 +268,7 @@ class _progress:
 
         self.bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                             TextColumn("loss {task.fields[loss]:.4f}"), TimeElapsedColumn(),
-                            TimeRemainingColumn(), transient=True)
+                            TimeRemainingColumn(), console=self.console, transient=True)
         self.bar.start()
         task = self.bar.add_task(self.title, total=self.total, loss=float("nan"))
         return lambda loss: self.bar.update(task, advance=1, loss=loss)

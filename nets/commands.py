@@ -1,0 +1,139 @@
+"""``ipm train``, ``ipm predict``, ``ipm saliency``.  torch is imported inside the commands,
+so ``import ipm`` and ``ipm --help`` stay light."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ipm.errors import UserError
+from ipm.frame import PIXEL_SIZE_MM
+
+_MODELS_HELP = "folder with ensemble.json (an `ipm train --out`); default: the shipped models"
+_PIXEL_HELP = (f"size of one photo pixel at the yarn in mm (the scene: {PIXEL_SIZE_MM}); "
+               "the photo is rescaled to the nets' pixel pitch")
+
+
+def train(
+    data: Annotated[Path, typer.Option(help="training set (`ipm generate --out`)")],
+    val: Annotated[Path, typer.Option(help="validation set, other seeds")],
+    out: Annotated[Path, typer.Option(help="run folder; an existing run is resumed")],
+    preset: Annotated[str, typer.Option(help="ensemble | reg | reg-ae | reg-latent | "
+                                        "reg-ae-latent")] = "ensemble",
+    real: Annotated[Path | None, typer.Option(help="unlabelled real photos for L_recon / "
+                                              "L_latent")] = None,
+    nets: Annotated[str | None, typer.Option(help="comma-separated subset of the preset's "
+                                             "nets, e.g. alpha,R_ply")] = None,
+    paper: Annotated[bool, typer.Option("--paper", help="the paper's configuration: ResNet "
+                                        "width 1 at 1200x584, 1000 epochs, lr 1e-4 (GPU)")]
+    = False,
+    encoder: Annotated[str | None, typer.Option(help="resnet18 | resnet34 | convnext")] = None,
+    width: Annotated[float | None, typer.Option(help="channel width multiplier (1 = paper)")]
+    = None,
+    input_scale: Annotated[float | None, typer.Option(help="input resolution relative to the "
+                                                      "paper's 1200x584 crop")] = None,
+    epochs: Annotated[int | None, typer.Option()] = None,
+    batch_size: Annotated[int | None, typer.Option(help="global batch (split over torchrun "
+                                                   "processes)")] = None,
+    lr: Annotated[float | None, typer.Option(help="Adam learning rate")] = None,
+    lambda_recon: Annotated[float | None, typer.Option()] = None,
+    lambda_latent: Annotated[float | None, typer.Option()] = None,
+    steps_per_epoch: Annotated[int | None, typer.Option(help="cap steps per epoch (smoke "
+                                                        "tests)")] = None,
+    seed: Annotated[int | None, typer.Option()] = None,
+    device: Annotated[str | None, typer.Option(help="cpu | cuda | cuda:N")] = None,
+    workers: Annotated[int | None, typer.Option(help="data loader processes")] = None,
+    real_pixel_size: Annotated[float | None, typer.Option(help="pixel size of the --real "
+                                                          "photos in mm")] = None,
+    real_invert: Annotated[bool, typer.Option("--real-invert", help="invert the --real "
+                                              "photos (backlit: dark yarn on light)")] = False,
+) -> None:
+    """Train the nets of a preset on a synthetic dataset (resumable; torchrun for DDP)."""
+    from ipm.nets.config import TrainConfig
+    from ipm.nets.train import train as run
+
+    given = dict(encoder=encoder, width=width, input_scale=input_scale, epochs=epochs,
+                 batch_size=batch_size, lr=lr, lambda_recon=lambda_recon,
+                 lambda_latent=lambda_latent, steps_per_epoch=steps_per_epoch, seed=seed,
+                 device=device, workers=workers, real_pixel_size=real_pixel_size)
+    options = {k: v for k, v in given.items() if v is not None}
+    options.update(data=data, val=val, out=out, preset=preset, real=real,
+                   real_invert=real_invert,
+                   nets=tuple(n.strip() for n in nets.split(",") if n.strip()) if nets else ())
+    cfg = TrainConfig.paper(**options) if paper else TrainConfig(**options)
+    run(cfg, log=lambda line: typer.echo(line, err=True))
+    typer.echo(f"models -> {cfg.out}", err=True)
+
+
+def predict(
+    photo: Annotated[Path, typer.Argument(help="photo of a yarn running horizontally")],
+    out: Annotated[Path | None, typer.Option("-o", "--out", help="JSON file to write")] = None,
+    pixel_size: Annotated[float, typer.Option(help=_PIXEL_HELP)] = PIXEL_SIZE_MM,
+    models: Annotated[Path | None, typer.Option(help=_MODELS_HELP)] = None,
+    crops: Annotated[int, typer.Option(help="crops along the yarn to average")] = 3,
+    invert: Annotated[bool, typer.Option("--invert", help="invert the photo first (backlit: "
+                                         "dark yarn on a light background)")] = False,
+    device: Annotated[str, typer.Option(help="cpu | cuda")] = "cpu",
+) -> None:
+    """Infer the yarn parameters from a photo with the neural ensemble; prints and writes
+    them as flat JSON (the form `ipm curves` reads)."""
+    from ipm.cli import check_output
+    from ipm.io import write_text
+    from ipm.nets.config import PredictConfig
+    from ipm.photo import read_image
+
+    cfg = PredictConfig(photo, models, pixel_size, crops, invert, device)
+    if out is not None:
+        check_output(out)
+    image = read_image(cfg.photo)
+    ensemble = _load(cfg.models, cfg.device)
+    params = ensemble.predict(1 - image if cfg.invert else image, cfg.pixel_size, cfg.crops)
+    typer.echo(params.to_json())
+    if out is not None:
+        write_text(out, params.to_json() + "\n")
+
+
+def saliency(
+    photo: Annotated[Path, typer.Argument(help="photo of a yarn running horizontally")],
+    param: Annotated[str, typer.Option(help="parameter (e.g. alpha_ply) or net (e.g. "
+                                       "flyaways) to explain")],
+    out: Annotated[Path, typer.Option("-o", "--out", help="PNG to write (the photo's size)")],
+    pixel_size: Annotated[float, typer.Option(help=_PIXEL_HELP)] = PIXEL_SIZE_MM,
+    models: Annotated[Path | None, typer.Option(help=_MODELS_HELP)] = None,
+    invert: Annotated[bool, typer.Option("--invert", help="invert the photo first")] = False,
+) -> None:
+    """The paper's saliency map: per pixel, max over colour channels of |d mean prediction
+    / d pixel| of the net that predicts PARAM (white = most influence)."""
+    import numpy as np
+    from PIL import Image
+
+    from ipm.cli import check_output
+    from ipm.io import atomic_path
+    from ipm.nets.config import SaliencyConfig
+    from ipm.nets.data import to_input
+    from ipm.nets.saliency import net_for, to_image
+    from ipm.nets.saliency import saliency as saliency_map
+    from ipm.photo import read_image, to_scene_pitch
+
+    cfg = SaliencyConfig(photo, param, models, pixel_size, invert)
+    check_output(out)
+    image = read_image(cfg.photo)
+    net, columns = net_for(_load(cfg.models, "cpu"), cfg.param)
+    scaled = to_scene_pitch(1 - image if cfg.invert else image, cfg.pixel_size,
+                            net.config.input_scale)
+    if min(scaled.shape[:2]) < 32:
+        raise UserError(f"{photo} is too small for the nets at this pixel size")
+    s = saliency_map(net, to_input(scaled)[None], columns)[0].numpy()
+    full = np.asarray(Image.fromarray(s.astype(np.float32), mode="F").resize(
+        (image.shape[1], image.shape[0]), Image.Resampling.BILINEAR))
+    with atomic_path(out) as tmp:
+        Image.fromarray(to_image(full), mode="L").save(tmp, format="PNG")
+    typer.echo(f"saliency of {param} -> {out}", err=True)
+
+
+def _load(models: Path | None, device: str):
+    from ipm.nets.ensemble import Ensemble
+
+    return Ensemble.load(models, device)

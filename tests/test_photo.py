@@ -1,0 +1,150 @@
+"""ipm.photo: every common still-image flavour decodes to (H, W, 3) float32 sRGB in [0, 1];
+bad files are one-line UserErrors; rescaling lands on the scene's pixel pitch."""
+
+import struct
+import zlib
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from ipm.errors import UserError
+from ipm.photo import (
+    MAX_PIXELS,
+    linear_to_srgb,
+    load_photo,
+    read_image,
+    srgb_to_linear,
+    to_scene_pitch,
+)
+
+RGB = np.random.default_rng(0).integers(0, 256, (30, 40, 3), dtype=np.uint8)
+
+
+def save(tmp_path, name, img: Image.Image, **kw):
+    path = tmp_path / name
+    img.save(path, **kw)
+    return path
+
+
+@pytest.mark.parametrize("name, make", [
+    ("rgb.png", lambda: Image.fromarray(RGB)),
+    ("rgb.jpg", lambda: Image.fromarray(RGB)),
+    ("rgb.tif", lambda: Image.fromarray(RGB)),
+    ("gray.png", lambda: Image.fromarray(RGB[..., 0])),
+    ("gray16.png", lambda: Image.fromarray(RGB[..., 0].astype(np.uint16) * 257)),
+    ("gray16.tif", lambda: Image.fromarray(RGB[..., 0].astype(np.uint16) * 257)),
+    ("rgba.png", lambda: Image.fromarray(np.dstack([RGB, np.full((30, 40), 255, np.uint8)]))),
+    ("palette.png", lambda: Image.fromarray(RGB).convert("P")),
+    ("la.png", lambda: Image.fromarray(RGB[..., 0]).convert("LA")),
+    ("bw.png", lambda: Image.fromarray(RGB[..., 0] > 128)),
+    ("cmyk.jpg", lambda: Image.fromarray(RGB).convert("CMYK")),
+])
+def test_read_image_flavours(tmp_path, name, make):
+    img = read_image(save(tmp_path, name, make()))
+    assert img.shape == (30, 40, 3) and img.dtype == np.float32
+    assert 0 <= img.min() and img.max() <= 1
+
+
+def test_read_image_values(tmp_path):
+    np.testing.assert_allclose(read_image(save(tmp_path, "a.png", Image.fromarray(RGB))),
+                               RGB / 255, atol=1e-6)
+    g16 = RGB[..., 0].astype(np.uint16) * 257
+    np.testing.assert_allclose(read_image(save(tmp_path, "b.png", Image.fromarray(g16)))[..., 1],
+                               g16 / 65535, atol=1e-6)
+
+
+def write_png16(path, a: np.ndarray) -> None:
+    """A 16-bit RGB(A) PNG (Pillow cannot write one)."""
+    h, w, c = a.shape
+    raw = b"".join(b"\x00" + a[y].astype(">u2").tobytes() for y in range(h))
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+
+    ihdr = struct.pack(">IIBBBBB", w, h, 16, {3: 2, 4: 6}[c], 0, 0, 0)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr)
+                     + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+
+
+@pytest.mark.parametrize("alpha", [False, True])
+def test_16bit_colour(tmp_path, alpha):
+    a = (np.random.default_rng(2).random((30, 40, 3)) * 65535).astype(np.uint16)
+    if alpha:
+        a = np.dstack([a, np.full((30, 40), 65535, np.uint16)])
+    write_png16(tmp_path / "c.png", a)
+    # Pillow reads 16-bit colour at 8-bit precision; the nets see 8-bit renders anyway.
+    np.testing.assert_allclose(read_image(tmp_path / "c.png"), a[..., :3] / 65535, atol=1 / 255)
+
+
+def test_alpha_composited_over_black(tmp_path):
+    rgba = np.zeros((4, 4, 4), np.uint8)
+    rgba[..., :3] = 200
+    rgba[..., 3] = 0
+    rgba[0, 0, 3] = 255
+    img = read_image(save(tmp_path, "t.png", Image.fromarray(rgba)))
+    assert img[0, 0, 0] == pytest.approx(200 / 255) and img[1, 1].max() == 0
+
+
+def test_exif_orientation_applied(tmp_path):
+    exif = Image.Exif()
+    exif[0x0112] = 6  # rotate 90 degrees clockwise on display
+    path = tmp_path / "r.jpg"
+    Image.fromarray(RGB).save(path, exif=exif)
+    assert read_image(path).shape == (40, 30, 3)
+
+
+@pytest.mark.parametrize("setup, message", [
+    (lambda p: p.write_text("not an image"), "is not an image"),
+    (lambda p: p.write_bytes(b""), "is not an image"),
+    (lambda p: None, "no such file"),
+    (lambda p: p.mkdir(), "is a folder"),
+])
+def test_bad_files(tmp_path, setup, message):
+    path = tmp_path / "x.png"
+    setup(path)
+    with pytest.raises(UserError, match=message):
+        read_image(path)
+
+
+def test_truncated_file(tmp_path):
+    path = save(tmp_path, "full.png", Image.fromarray(RGB))
+    data = path.read_bytes()
+    cut = tmp_path / "cut.png"
+    cut.write_bytes(data[: len(data) // 2])
+    with pytest.raises(UserError, match="cannot decode"):
+        read_image(cut)
+    cut.write_bytes(save(tmp_path, "f.jpg", Image.fromarray(RGB)).read_bytes()[:300])
+    with pytest.raises(UserError, match="cannot decode"):
+        read_image(cut)
+
+
+def test_huge_refused_before_decoding(tmp_path):
+    path = save(tmp_path, "big.png", Image.new("1", (200, 100)))
+    with pytest.raises(UserError, match="too large"):
+        read_image(path, max_pixels=10_000)
+    assert MAX_PIXELS >= 100_000_000
+
+
+def test_to_scene_pitch_sizes():
+    img = np.random.default_rng(1).random((600, 2000, 3), dtype=np.float32)
+    assert to_scene_pitch(img, 0.01, 0.25).shape == (150, 500, 3)
+    assert to_scene_pitch(img, 0.02, 0.25).shape == (300, 1000, 3)  # upsampled
+    assert to_scene_pitch(img, 0.01, 1.0).shape == img.shape
+    mean = to_scene_pitch(img, 0.01, 0.1).mean()
+    assert mean == pytest.approx(img.mean(), abs=1e-3)  # box filter keeps the mean
+    with pytest.raises(UserError, match="pixel size"):
+        to_scene_pitch(img, 0.0)
+
+
+def test_load_photo_min_size(tmp_path):
+    path = save(tmp_path, "a.png", Image.fromarray(RGB))
+    assert load_photo(path, 0.01, 1.0, min_size=(30, 40)).shape == (30, 40, 3)
+    with pytest.raises(UserError, match=r"at least 80x60 px"):
+        load_photo(path, 0.01, 0.5, min_size=(30, 40))
+
+
+def test_srgb_round_trip():
+    x = np.linspace(0, 1, 101, dtype=np.float32)
+    np.testing.assert_allclose(linear_to_srgb(srgb_to_linear(x)), x, atol=1e-5)

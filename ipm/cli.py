@@ -92,6 +92,21 @@ def curves(
     typer.echo(f"{fs.num_fibers} fibers, {len(fs.points)} vertices -> {out}", err=True)
 
 
+# render/
+from ipm.render import commands as render_commands  # noqa: E402  (mitsuba loads lazily)
+
+app.command("render")(render_commands.render)
+app.command("doctor")(render_commands.doctor)
+
+
+# nets/
+from ipm.nets import commands as nets_commands  # noqa: E402  (torch is imported lazily inside)
+
+app.command("train")(nets_commands.train)
+app.command("predict")(nets_commands.predict)
+app.command("saliency")(nets_commands.saliency)
+
+
 def main() -> None:
     try:
         app()

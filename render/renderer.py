@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,14 @@ from ipm.generator import generate
 from ipm.io import atomic_path
 from ipm.params import YarnParams
 from ipm.render.photometric import NOMINAL, Photometric, apply_to_image
-from ipm.render.scene import DEFAULT_OPTIONS, SceneOptions, frame_size, scene_dict, yarn_to_world
+from ipm.render.scene import (
+    DEFAULT_OPTIONS,
+    SceneOptions,
+    frame_size,
+    pixel_size_mm,
+    scene_dict,
+    yarn_to_world,
+)
 from ipm.render.variant import mitsuba
 
 #: A two-vertex fiber: the curve file the scenes are loaded with before any swap.
@@ -65,13 +73,24 @@ class Renderer:
     def variant(self) -> str:
         return self.mi.variant()
 
+    def settings(self, scale: float, spp: int, render_seed: int) -> dict:
+        """What a saved image records about how it was rendered (JSON-ready)."""
+        width, height = frame_size(scale)
+        return {"scale": scale, "spp": spp, "render_seed": render_seed, "width": width,
+                "height": height, "pixel_size_mm": pixel_size_mm(scale),
+                "variant": self.variant, "scene": asdict(self.options)}
+
+    def _load(self, scale: float, curve_text: str, color: tuple[float, float, float],
+              to_world: np.ndarray | None = None) -> object:
+        with tempfile.TemporaryDirectory(prefix="ipm-scene-") as tmp:
+            curves = Path(tmp, "curves.txt")
+            curves.write_text(curve_text)
+            return self.mi.load_dict(scene_dict(scale, 1, str(curves), color, self.options,
+                                                to_world))
+
     def _scene(self, scale: float) -> tuple[object, object]:
         if scale not in self._scenes:
-            with tempfile.TemporaryDirectory(prefix="ipm-scene-") as tmp:
-                curves = Path(tmp, "placeholder.txt")
-                curves.write_text(_PLACEHOLDER_CURVE)
-                scene = self.mi.load_dict(scene_dict(scale, 1, str(curves), (0.5, 0.5, 0.5),
-                                                     self.options))
+            scene = self._load(scale, _PLACEHOLDER_CURVE, (0.5, 0.5, 0.5))
             self._scenes[scale] = (scene, self.mi.traverse(scene))
         return self._scenes[scale]
 
@@ -83,14 +102,18 @@ class Renderer:
         if spp < 1:
             raise ValueError(f"spp must be >= 1, got {spp}")
         frame_size(scale)  # validates the scale
-        scene, params = self._scene(scale)
-        points, segments = world_curves(fibers, yarn_to_world() if to_world is None
-                                        else to_world)
-        params["yarn.control_points"] = self.mi.Float(points.ravel())
-        params["yarn.segment_indices"] = self.mi.UInt32(segments)
-        params["yarn.control_point_count"] = len(points)
-        params["yarn.bsdf.base_color.value"] = self.mi.Color3f(*color)
-        params.update()
+        to_world = yarn_to_world() if to_world is None else to_world
+        if self.variant.startswith("scalar"):
+            # no kernels to keep, and scalar buffers cannot change size: load the yarn anew
+            scene = self._load(scale, fibers.mitsuba_curve_text(), color, to_world)
+        else:
+            scene, params = self._scene(scale)
+            points, segments = world_curves(fibers, to_world)
+            params["yarn.control_points"] = self.mi.Float(points.ravel())
+            params["yarn.segment_indices"] = self.mi.UInt32(segments)
+            params["yarn.control_point_count"] = len(points)
+            params["yarn.bsdf.base_color.value"] = self.mi.Color3f(*color)
+            params.update()
         image = self.mi.render(scene, spp=spp, seed=render_seed)
         return np.array(image, dtype=np.float32)[..., :3]
 

@@ -1,0 +1,103 @@
+"""``ipm render``, ``ipm generate`` and ``ipm doctor``.  Mitsuba is imported inside the
+commands only: importing ``ipm`` (and its CLI) must stay light."""
+
+from __future__ import annotations
+
+import json
+import os
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ipm.errors import UserError
+
+DEFAULT_RENDER_SCALE = 0.25
+DEFAULT_RENDER_SPP = 16
+VariantOpt = Annotated[str | None, typer.Option(
+    help="Mitsuba variant: llvm_ad_rgb (default, CPU), cuda_ad_rgb or scalar_rgb; "
+         "also the IPM_VARIANT environment variable")]
+
+
+def _check_writable_folder(folder: Path) -> None:
+    if not folder.is_dir():
+        raise UserError(f"output folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise UserError(f"output folder {folder} is not writable")
+
+
+class RenderFormat(str, Enum):
+    png = "png"
+    xml = "xml"
+
+
+def render(
+    params: Annotated[Path | None, typer.Argument(help="yarn parameters (JSON, as `ipm sample`)")]
+    = None,
+    out: Annotated[Path, typer.Option("-o", "--out", help="image to write (.png); with "
+                                      "--format xml, the scene file")] = Path("yarn.png"),
+    preset: Annotated[str | None, typer.Option(help="render one of the paper's 12 yarns "
+                                               "instead of a JSON file")] = None,
+    scale: Annotated[float, typer.Option(help="resolution: 1 = the 2000 x 600 px frame at "
+                                         "0.01 mm per pixel")] = DEFAULT_RENDER_SCALE,
+    spp: Annotated[int, typer.Option(min=1, help="samples per pixel")] = DEFAULT_RENDER_SPP,
+    seed: Annotated[int, typer.Option(help="seed of the fiber generator")] = 1,
+    render_seed: Annotated[int, typer.Option(help="seed of the path tracer's sampler")] = 0,
+    contact_sheet: Annotated[bool, typer.Option("--contact-sheet", help="render the 12 "
+                                                "presets side by side into --out")] = False,
+    format: Annotated[RenderFormat, typer.Option(help="png: render; xml: write a Mitsuba "
+                                                 "scene (+ curve file) to render elsewhere")]
+    = RenderFormat.png,
+    variant: VariantOpt = None,
+) -> None:
+    """Render a yarn like a macro photo of the lab setup; writes ``<out>.json`` beside the
+    image (parameters, seeds, render settings and ``pixel_size_mm``)."""
+    from ipm.params import YarnParams
+    from ipm.presets import preset as get_preset
+    from ipm.render.scene import frame_size
+
+    frame_size(scale)
+    _check_writable_folder(out.parent if str(out.parent) else Path("."))
+    if contact_sheet:
+        if params is not None or preset is not None:
+            raise UserError("--contact-sheet renders the 12 presets; give no parameters")
+        from ipm.render.contact_sheet import contact_sheet as make_sheet
+
+        make_sheet(out, scale=scale, spp=spp, seed=seed, variant=variant)
+        typer.echo(f"contact sheet of the 12 presets -> {out}", err=True)
+        return
+    if (params is None) == (preset is None):
+        raise UserError("give a parameter file or --preset NAME (or --contact-sheet)")
+    p = get_preset(preset) if preset else YarnParams.load(params)
+    if format is RenderFormat.xml:
+        from ipm.render.export import save_scene_xml
+
+        files = save_scene_xml(out, p, seed, scale=scale, spp=spp, variant=variant)
+        typer.echo(f"Mitsuba scene -> {', '.join(map(str, files))}", err=True)
+        return
+    from ipm.io import write_text
+    from ipm.render.renderer import Renderer, save_png
+
+    renderer = Renderer(variant)
+    image = renderer.render(p, seed, scale, spp, render_seed)
+    save_png(out, image)
+    record = {"params": p.to_dict(), "seed": seed, **renderer.settings(scale, spp, render_seed)}
+    write_text(out.with_suffix(".json"), json.dumps(record, indent=2) + "\n")
+    typer.echo(f"{image.shape[1]}x{image.shape[0]} px, {record['pixel_size_mm']:.4g} mm/px "
+               f"-> {out}", err=True)
+
+
+def doctor() -> None:
+    """Report what rendering and training need (Mitsuba variants, libLLVM, torch device,
+    threads) and how to fix what is missing."""
+    from ipm.render.doctor import checks
+
+    failed = 0
+    for c in checks():
+        failed += c.required and not c.ok
+        mark = "ok " if c.ok else ("BAD" if c.required else "-- ")
+        typer.echo(f"{mark} {c.name:20s} {c.detail}")
+        if c.fix and not c.ok:
+            typer.echo(f"    fix: {c.fix}")
+    typer.echo("everything needed works" if not failed else f"{failed} problem(s); see fix lines")

@@ -96,6 +96,7 @@ def curves(
 from ipm.render import commands as render_commands  # noqa: E402  (mitsuba loads lazily)
 
 app.command("render")(render_commands.render)
+app.command("generate")(render_commands.generate)
 app.command("doctor")(render_commands.doctor)
 
 

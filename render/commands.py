@@ -101,3 +101,60 @@ def doctor() -> None:
         if c.fix and not c.ok:
             typer.echo(f"    fix: {c.fix}")
     typer.echo("everything needed works" if not failed else f"{failed} problem(s); see fix lines")
+
+
+def generate(
+    out: Annotated[Path, typer.Option("--out", "-o", help="dataset folder (created; a rerun "
+                                      "with the same settings completes it)")],
+    count: Annotated[int, typer.Option(min=1, help="number of samples")] = 2000,
+    seed: Annotated[int, typer.Option(help="master seed: sample i depends only on (seed, "
+                                      "split, i)")] = 0,
+    split: Annotated[str, typer.Option(help="split name recorded per sample (train, val)")]
+    = "train",
+    scale: Annotated[float | None, typer.Option(help="resolution (1 = 2000 x 600 px); "
+                                                "default 0.5")] = None,
+    spp: Annotated[int | None, typer.Option(min=1, help="samples per pixel; default 8")] = None,
+    workers: Annotated[int | None, typer.Option(min=1, help="render processes; default: one "
+                                                "per core")] = None,
+    photometric: Annotated[bool, typer.Option(help="vary exposure, white balance, yarn shift "
+                                              "and rotation and sensor noise per sample "
+                                              "(seeded, recorded in the manifest)")] = True,
+    variant: VariantOpt = None,
+) -> None:
+    """Make the synthetic dataset: guided-prior yarns rendered in THE scene, with
+    ``manifest.jsonl`` (one JSON object per sample) and ``images/``."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from ipm.render.dataset import DEFAULT_SCALE, DEFAULT_SPP, GenerateOptions, generate_dataset
+    from ipm.render.photometric import NO_VARIATION, PhotometricRanges
+
+    opts = GenerateOptions(count=count, seed=seed, split=split,
+                           scale=DEFAULT_SCALE if scale is None else scale,
+                           spp=DEFAULT_SPP if spp is None else spp,
+                           photometric=PhotometricRanges() if photometric else NO_VARIATION)
+    columns = (TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"),
+               TimeRemainingColumn())
+    with Progress(*columns, transient=False) as bar:
+        task = bar.add_task(f"{split} -> {out}", total=count, rate="")
+        start: list[tuple[float, int]] = []
+
+        def progress(done: int, total: int) -> None:
+            import time
+
+            now = time.monotonic()
+            start.append((now, done)) if not start else None
+            t0, d0 = start[0]
+            rate = (done - d0) / (now - t0) * 3600 if now > t0 and done > d0 else 0.0
+            bar.update(task, completed=done, rate=f"{rate:,.0f} img/h" if rate else "")
+
+        records = generate_dataset(out, opts, workers=workers, variant=variant,
+                                   progress=progress)
+    typer.echo(f"{len(records)} samples in {out}", err=True)

@@ -1,0 +1,245 @@
+"""The synthetic dataset (paper section "Yarn dataset"): guided-prior yarns rendered in THE
+scene, with a manifest the nets read.
+
+Dataset contract (``DIR`` made by ``ipm generate``):
+
+* ``DIR/images/NNNNNN.png``: 8-bit sRGB RGB PNG of the 2000 x 600 frame times ``scale``.
+* ``DIR/manifest.jsonl``: one JSON object per line, sorted by ``index`` when a run ends, with
+  ``index``, ``image`` (path relative to ``DIR``), ``params`` (flat
+  :meth:`~ipm.params.YarnParams.to_dict`), ``seed`` (fiber seed), ``render_seed``,
+  ``split``, ``scale``, ``spp``, ``width``, ``height``, ``pixel_size_mm`` and
+  ``photometric`` (the applied :class:`~ipm.render.photometric.Photometric`).
+* ``DIR/dataset.json``: the settings of the run; a rerun with other settings is refused.
+
+Sample ``i`` depends only on (seed, split, i): its parameters, fiber seed, render seed and
+capture variation come from ``SeedSequence([seed, crc32(split), i])``, so its bytes do not
+depend on the worker that made it or on the order.  Images are written atomically before
+their manifest line, and a rerun keeps the lines whose image exists, drops a torn last line
+and renders what is missing: killed at any moment and rerun, a folder ends with exactly
+``count`` samples.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zlib
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ipm.errors import UserError
+from ipm.io import write_text
+from ipm.params import YarnParams
+from ipm.prior import GuidedPrior
+from ipm.render.photometric import Photometric, PhotometricRanges
+from ipm.render.scene import DEFAULT_OPTIONS, SceneOptions, frame_size, pixel_size_mm
+
+MANIFEST = "manifest.jsonl"
+SETTINGS = "dataset.json"
+IMAGES = "images"
+
+#: Defaults chosen by measurement (benchmarks/README.md, "Render speed"): 1000 x 300 px keeps
+#: the thinnest fibers at 0.6 px and the common ones at 1-2 px, and 8 spp is where the
+#: render noise falls below the fiber contrast; 2000 images take under an hour on 2 cores.
+DEFAULT_SCALE = 0.5
+DEFAULT_SPP = 8
+
+
+@dataclass(frozen=True)
+class GenerateOptions:
+    """One dataset: ``count`` samples of ``split`` from master ``seed``."""
+
+    count: int
+    seed: int = 0
+    split: str = "train"
+    scale: float = DEFAULT_SCALE
+    spp: int = DEFAULT_SPP
+    photometric: PhotometricRanges = field(default_factory=PhotometricRanges)
+    scene: SceneOptions = DEFAULT_OPTIONS
+
+    def __post_init__(self) -> None:
+        if self.count < 1:
+            raise UserError(f"count must be >= 1, got {self.count}")
+        if self.spp < 1:
+            raise UserError(f"spp must be >= 1, got {self.spp}")
+        if not self.split or not self.split.replace("_", "").replace("-", "").isalnum():
+            raise UserError(f"split must be a simple name like train or val, got {self.split!r}")
+        frame_size(self.scale)
+
+    def settings(self) -> dict[str, Any]:
+        """Everything a sample's bytes depend on (``count`` aside): JSON-ready."""
+        d = asdict(self)
+        del d["count"]
+        return json.loads(json.dumps(d))
+
+
+@dataclass(frozen=True)
+class SampleSeeds:
+    params_rng: np.random.Generator
+    fiber_seed: int
+    render_seed: int
+    photometric_rng: np.random.Generator
+
+
+def sample_seeds(seed: int, split: str, index: int) -> SampleSeeds:
+    """Independent streams of sample ``index``, from (seed, split, index) only."""
+    ss = np.random.SeedSequence([seed, zlib.crc32(split.encode()), index])
+    p, f, r, ph = ss.spawn(4)
+    return SampleSeeds(np.random.default_rng(p), int(f.generate_state(1)[0]),
+                       int(r.generate_state(1)[0]), np.random.default_rng(ph))
+
+
+def sample_plan(opts: GenerateOptions, index: int) -> tuple[YarnParams, int, int, Photometric]:
+    """(params, fiber seed, render seed, capture variation) of sample ``index``."""
+    s = sample_seeds(opts.seed, opts.split, index)
+    return (GuidedPrior().sample(s.params_rng), s.fiber_seed, s.render_seed,
+            opts.photometric.draw(s.photometric_rng))
+
+
+def image_name(index: int) -> str:
+    return f"{IMAGES}/{index:06d}.png"
+
+
+# -- workers ---------------------------------------------------------------------------------
+_renderer = None
+
+
+def _init_worker(variant: str | None, scene: SceneOptions, threads: int) -> None:
+    global _renderer
+    from ipm.render.renderer import Renderer
+
+    _renderer = Renderer(variant, scene, threads=threads)
+
+
+def make_sample(folder: str, opts: GenerateOptions, index: int) -> dict[str, Any]:
+    """Render sample ``index`` into ``folder`` (atomically) and return its manifest record.
+    Runs in a worker process (its :class:`Renderer` is made by the pool initializer)."""
+    from ipm.render.renderer import save_png
+
+    params, fiber_seed, render_seed, ph = sample_plan(opts, index)
+    image = _renderer.render(params, fiber_seed, opts.scale, opts.spp, render_seed, ph)
+    save_png(Path(folder, image_name(index)), image)
+    width, height = frame_size(opts.scale)
+    return {"index": index, "image": image_name(index), "split": opts.split,
+            "params": params.to_dict(), "seed": fiber_seed, "render_seed": render_seed,
+            "scale": opts.scale, "spp": opts.spp, "width": width, "height": height,
+            "pixel_size_mm": pixel_size_mm(opts.scale), "photometric": ph.to_dict(),
+            "variant": _renderer.variant}
+
+
+# -- folder state ----------------------------------------------------------------------------
+def _parse_lines(path: Path) -> Iterator[dict[str, Any]]:
+    for line in path.read_text(encoding="utf-8").splitlines():
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue  # the torn last line of a killed run
+        if isinstance(rec, dict) and isinstance(rec.get("index"), int) and "image" in rec:
+            yield rec
+
+
+def read_manifest(folder: str | os.PathLike) -> list[dict[str, Any]]:
+    """The samples of a dataset folder, sorted by index: the manifest's records whose image
+    exists (one per index).  Raises :class:`UserError` if ``folder`` holds no manifest."""
+    folder = Path(folder)
+    path = folder / MANIFEST
+    if not path.is_file():
+        raise UserError(f"{folder} is not a dataset: {MANIFEST} not found "
+                        "(make one with `ipm generate`)")
+    records = {r["index"]: r for r in _parse_lines(path) if (folder / r["image"]).is_file()}
+    return [records[i] for i in sorted(records)]
+
+
+def _prepare(folder: Path, opts: GenerateOptions) -> dict[int, dict[str, Any]]:
+    """Check or create the folder and return the valid samples already there (index < count);
+    rewrites the manifest without torn or duplicate lines."""
+    if folder.exists() and not folder.is_dir():
+        raise UserError(f"{folder} exists and is not a folder")
+    parent = folder.parent
+    if not folder.exists() and not (parent.is_dir() and os.access(parent, os.W_OK)):
+        raise UserError(f"cannot create {folder}: {parent} is missing or not writable")
+    folder.mkdir(exist_ok=True)
+    if not os.access(folder, os.W_OK):
+        raise UserError(f"output folder {folder} is not writable")
+    settings_path = folder / SETTINGS
+    if settings_path.is_file():
+        try:
+            previous = json.loads(settings_path.read_text(encoding="utf-8"))
+        except json.JSONDecodeError:
+            raise UserError(f"{settings_path} is not valid JSON; is this an ipm dataset?") \
+                from None
+        if previous != opts.settings():
+            changed = sorted(k for k in {*previous, *opts.settings()}
+                             if previous.get(k) != opts.settings().get(k))
+            raise UserError(f"{folder} holds a dataset made with other settings "
+                            f"({', '.join(changed)}); rerun with the same settings to resume, "
+                            "or choose another --out")
+    elif any(p for p in folder.iterdir() if not p.name.startswith(".")):
+        raise UserError(f"{folder} is not empty and holds no {SETTINGS}; "
+                        "choose an empty or new folder")
+    else:
+        write_text(settings_path, json.dumps(opts.settings(), indent=2) + "\n")
+    (folder / IMAGES).mkdir(exist_ok=True)
+    done: dict[int, dict[str, Any]] = {}
+    if (folder / MANIFEST).is_file():
+        done = {r["index"]: r for r in read_manifest(folder) if r["index"] < opts.count}
+    _write_manifest(folder, done)
+    return done
+
+
+def _write_manifest(folder: Path, records: dict[int, dict[str, Any]]) -> None:
+    write_text(folder / MANIFEST, "".join(json.dumps(records[i]) + "\n" for i in sorted(records)))
+
+
+# -- the run ---------------------------------------------------------------------------------
+Progress = Callable[[int, int], None]
+
+
+def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: int | None = None,
+                     variant: str | None = None, progress: Progress | None = None
+                     ) -> list[dict[str, Any]]:
+    """Make (or complete) the dataset in ``folder`` with a local process pool.
+
+    workers: processes (default: one per core), each with its own :class:`Renderer` and
+    cores / workers render threads.  progress: called as ``progress(done, count)``.
+    Returns the manifest records, sorted by index.
+    """
+    folder = Path(folder)
+    cores = os.cpu_count() or 1
+    workers = workers or cores
+    if workers < 1:
+        raise UserError(f"workers must be >= 1, got {workers}")
+    from ipm.render.variant import requested_variant
+
+    requested_variant(variant)  # an unknown variant fails before anything is written
+    done = _prepare(folder, opts)
+    todo = [i for i in range(opts.count) if i not in done]
+    if progress:
+        progress(len(done), opts.count)
+    if todo:
+        # spawn, not fork: Dr.Jit's threads do not survive a fork
+        pool = ProcessPoolExecutor(min(workers, len(todo)), mp_context=get_context("spawn"),
+                                   initializer=_init_worker,
+                                   initargs=(variant, opts.scene, max(1, cores // workers)))
+        try:
+            with open(folder / MANIFEST, "a", encoding="utf-8") as manifest:
+                pending = {pool.submit(make_sample, str(folder), opts, i) for i in todo}
+                while pending:
+                    finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                    for fut in finished:
+                        rec = fut.result()
+                        manifest.write(json.dumps(rec) + "\n")
+                        manifest.flush()
+                        done[rec["index"]] = rec
+                    if progress:
+                        progress(len(done), opts.count)
+        finally:
+            pool.shutdown(cancel_futures=True)
+    _write_manifest(folder, done)
+    return [done[i] for i in sorted(done)]

@@ -27,7 +27,7 @@ import kornia
 import torch
 from torch import Tensor, nn
 
-GROUPS = ("profile", "texture", "orientation", "spectrum", "histogram")
+GROUPS = ("core", "flyaways", "orientation", "spectrum", "histogram")
 
 
 def _check_image(x: Tensor, name: str) -> None:
@@ -39,18 +39,20 @@ def _check_image(x: Tensor, name: str) -> None:
 
 
 def _centred_deviation(gray: Tensor) -> Tensor:
-    """(B, 1, H, W) signed deviation from the background, rolled so the yarn's centre of
-    mass (of |deviation|) sits on the middle row."""
+    """(B, 1, H, W) signed deviation from the background, shifted (bilinear, sub-pixel) so
+    that the core's centre sits on the middle row.  The centre is the centroid of the
+    per-row median of |deviation|, which sparse flyaways do not move."""
     h = gray.shape[-2]
     edge = max(1, h // 12)
     border = torch.cat([gray[..., :edge, :], gray[..., -edge:, :]], dim=-2)
     bg = border.flatten(1).median(dim=1).values.view(-1, 1, 1, 1)
     dev = gray - bg
-    weight = dev.abs().mean(dim=-1).squeeze(1)  # (B, H)
+    weight = dev.abs().median(dim=-1).values.squeeze(1)  # (B, H)
+    weight = torch.clamp(weight - 0.5 * weight.amax(dim=-1, keepdim=True), min=0)
     rows = torch.arange(h, dtype=gray.dtype, device=gray.device)
     centre = (weight * rows).sum(-1) / weight.sum(-1).clamp_min(1e-8)
-    shifts = (h // 2 - centre.round()).long().tolist()
-    return torch.stack([torch.roll(d, s, dims=-2) for d, s in zip(dev, shifts, strict=True)])
+    shift = torch.stack([torch.zeros_like(centre), (h - 1) / 2 - centre], dim=-1)
+    return kornia.geometry.transform.translate(dev, shift, padding_mode="border")
 
 
 def _strip_mean(x: Tensor, strips: int) -> Tensor:
@@ -65,11 +67,32 @@ def _band_edges(w: int, bands: int) -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
 
 
+def _spectrum_bins(h: int, w: int, bands: int, angles: int, device, dtype):
+    """(bands * angles, h * (w // 2 + 1)) averaging matrix of the rfft2 plane: log-spaced
+    radial frequency bands times orientation bins over [0, pi)."""
+    fy = torch.fft.fftfreq(h, device=device, dtype=dtype)[:, None].expand(h, w // 2 + 1)
+    fx = torch.fft.rfftfreq(w, device=device, dtype=dtype)[None, :].expand(h, w // 2 + 1)
+    radius = torch.sqrt(fx * fx + fy * fy).flatten()
+    angle = torch.remainder(torch.atan2(fy, fx), torch.pi).flatten()
+    edges = torch.logspace(math.log10(1.5 / w), math.log10(0.5), bands + 1, dtype=dtype,
+                           device=device)
+    band = torch.bucketize(radius, edges) - 1
+    ang = (angle / torch.pi * angles).long().clamp(max=angles - 1)
+    valid = (band >= 0) & (band < bands)
+    index = torch.where(valid, band * angles + ang, torch.full_like(band, bands * angles))
+    m = torch.zeros(bands * angles + 1, radius.numel(), dtype=dtype, device=device)
+    m[index, torch.arange(radius.numel(), device=device)] = 1
+    m = m[:-1]
+    return m / m.sum(dim=1, keepdim=True).clamp_min(1)
+
+
 def _level_stats(dev: Tensor, strips: int, bands: int) -> dict[str, Tensor]:
     b, _, h, w = dev.shape
     d = dev[:, 0]
-    profile = d.mean(dim=-1)  # (B, H)
-    texture = _strip_mean(d.std(dim=-1, keepdim=True), strips)[..., 0]
+    # the median over the axis ignores sparse flyaways: the core's occupancy; the mean
+    # minus the median is what the flyaways add at each distance from the axis
+    median = d.median(dim=-1).values
+    fly = d.mean(dim=-1) - median
 
     g = kornia.filters.spatial_gradient(dev)[:, 0]  # (B, 2, H, W)
     gx, gy = g[:, 0], g[:, 1]
@@ -81,18 +104,20 @@ def _level_stats(dev: Tensor, strips: int, bands: int) -> dict[str, Tensor]:
     e = m[..., :1].clamp_min(1e-12)
     orientation = torch.cat([m[..., 1:] / e, 0.1 * torch.log(e)], dim=-1).flatten(1)
 
-    window = torch.hann_window(w, dtype=dev.dtype, device=dev.device)
-    centred = d - d.mean(dim=-1, keepdim=True)
-    power = torch.fft.rfft(centred * window, dim=-1).abs().square()  # (B, H, W/2 + 1)
-    power = _strip_mean(power, strips)
-    banded = torch.stack([power[..., a:bb].mean(-1) for a, bb in _band_edges(w, bands)], -1)
-    logp = torch.log(banded + 1e-10)
-    spectrum = 0.25 * (logp - logp.mean(dim=-1, keepdim=True)).flatten(1)
-    return {"profile": 4 * profile, "texture": 4 * texture, "orientation": orientation,
+    # 2-D power spectrum of the core band: the ply and fiber twist as stripes of one
+    # period and orientation, averaged over the whole band
+    band = d[:, h // 2 - h // 6: h // 2 + h // 6]
+    window = torch.outer(torch.hann_window(band.shape[1], dtype=d.dtype, device=d.device),
+                         torch.hann_window(w, dtype=d.dtype, device=d.device))
+    power = torch.fft.rfft2((band - band.mean(dim=(1, 2), keepdim=True)) * window).abs().square()
+    bins = _spectrum_bins(band.shape[1], w, bands, 4, d.device, d.dtype)
+    logp = torch.log(power.flatten(1) @ bins.T + 1e-10)
+    spectrum = 0.25 * (logp - logp.mean(dim=-1, keepdim=True))
+    return {"core": 4 * median, "flyaways": 8 * fly, "orientation": orientation,
             "spectrum": spectrum}
 
 
-def yarn_statistics(image: Tensor, levels: int = 2, strips: int = 12, bands: int = 16
+def yarn_statistics(image: Tensor, levels: int = 2, strips: int = 6, bands: int = 6
                     ) -> dict[str, Tensor]:
     """Statistics of a batch of yarn images, each group ``(B, D_group)``.
 
@@ -129,8 +154,14 @@ def yarn_stat_loss(x: Tensor, x_o: Tensor, weights: dict[str, float] | None = No
     if x.shape[-2:] != x_o.shape[-2:]:
         raise ValueError(f"x and x_o must have the same size, got {tuple(x.shape[-2:])} and "
                          f"{tuple(x_o.shape[-2:])}")
+    return stat_distance(yarn_statistics(x, **kwargs), yarn_statistics(x_o, **kwargs), weights)
+
+
+def stat_distance(sx: dict[str, Tensor], so: dict[str, Tensor],
+                  weights: dict[str, float] | None = None) -> Tensor:
+    """(B,) weighted mean squared difference of two :func:`yarn_statistics` results (to
+    compare many renders with one photo whose statistics are computed once)."""
     weights = weights or {}
-    sx, so = yarn_statistics(x, **kwargs), yarn_statistics(x_o, **kwargs)
     return sum(weights.get(k, 1.0) * (sx[k] - so[k]).square().mean(dim=1) for k in GROUPS)
 
 
@@ -138,7 +169,7 @@ class YarnStatLoss(nn.Module):
     """Module twin of :func:`yarn_stat_loss`; precomputes nothing, holds the options."""
 
     def __init__(self, weights: dict[str, float] | None = None, levels: int = 2,
-                 strips: int = 12, bands: int = 16) -> None:
+                 strips: int = 6, bands: int = 6) -> None:
         super().__init__()
         self.weights, self.kw = weights, dict(levels=levels, strips=strips, bands=bands)
 

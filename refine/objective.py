@@ -1,0 +1,65 @@
+"""The render-and-compare objective: loss of a yarn's render against one photo.
+
+The photo (sRGB, at the scene's pixel pitch for the render scale, see :mod:`ipm.photo`) and
+the render are cut to their common centred extent; the render is sRGB-encoded like a photo;
+both go through :func:`ipm.refine.stats.yarn_statistics`, the photo's once.  The objective
+is deterministic for a given fiber seed: the render seed is fixed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from ipm.params import YarnParams
+from ipm.photo import linear_to_srgb
+from ipm.refine.stats import stat_distance, yarn_statistics
+
+
+def centre_crop(img: np.ndarray, h: int, w: int) -> np.ndarray:
+    top, left = (img.shape[0] - h) // 2, (img.shape[1] - w) // 2
+    return img[top:top + h, left:left + w]
+
+
+def to_tensor(img: np.ndarray) -> torch.Tensor:
+    """(H, W, 3) float -> (1, 3, H, W) float64 tensor."""
+    return torch.from_numpy(np.ascontiguousarray(img, dtype=np.float64)).permute(2, 0, 1)[None]
+
+
+class RenderObjective:
+    """``objective(params, seed) -> float``: the statistics loss of the yarn ``params``
+    rendered at ``scale`` with ``spp`` samples against ``photo``.
+
+    renderer: an :class:`ipm.render.renderer.Renderer`.  photo: (H, W, 3) sRGB in [0, 1]
+    at the pixel pitch of ``scale``.  ``seeds_per_eval``: the render's statistics are the
+    mean over that many fiber seeds (``seed``, ``seed + 1000``, ...), which shrinks the
+    seed noise of the loss at that many times the cost.  ``evaluations`` counts renders.
+    """
+
+    def __init__(self, renderer, photo: np.ndarray, scale: float, spp: int,
+                 render_seed: int = 0, weights: dict[str, float] | None = None,
+                 seeds_per_eval: int = 1) -> None:
+        from ipm.render.scene import frame_size
+
+        w, h = frame_size(scale)
+        self.size = (min(h, photo.shape[0]), min(w, photo.shape[1]))
+        self.renderer, self.scale, self.spp, self.render_seed = renderer, scale, spp, render_seed
+        self.weights, self.seeds_per_eval = weights, seeds_per_eval
+        self.photo_stats = yarn_statistics(to_tensor(centre_crop(photo, *self.size)))
+        self.evaluations = 0
+
+    def render(self, params: YarnParams, seed: int) -> np.ndarray:
+        """The sRGB render (H, W, 3) the objective compares, cut to the photo's extent."""
+        img = self.renderer.render(params, seed, self.scale, self.spp, self.render_seed)
+        self.evaluations += 1
+        return centre_crop(linear_to_srgb(img), *self.size)
+
+    def loss_of_image(self, img: np.ndarray) -> float:
+        return float(stat_distance(yarn_statistics(to_tensor(img)), self.photo_stats,
+                                   self.weights)[0])
+
+    def __call__(self, params: YarnParams, seed: int) -> float:
+        stats = [yarn_statistics(to_tensor(self.render(params, seed + 1000 * k)))
+                 for k in range(self.seeds_per_eval)]
+        mean = {g: torch.stack([s[g] for s in stats]).mean(dim=0) for g in stats[0]}
+        return float(stat_distance(mean, self.photo_stats, self.weights)[0])

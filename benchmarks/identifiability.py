@@ -61,9 +61,9 @@ def run(names, yarns: int, scale: float, spp: int, seeds_per_eval: int) -> dict:
                                     seeds_per_eval=seeds_per_eval)
         for n in names:
             results[n].append(sweep(objective, truth, n))
-            print(f"yarn {i} {n}: argmin {results[n][-1]['argmin']:+.3f} "
-                  f"spread/rise {results[n][-1]['spread'] / max(results[n][-1]['rise'], 1e-12):.2f}",
-                  flush=True)
+            r = results[n][-1]
+            print(f"yarn {i} {n}: argmin {r['argmin']:+.3f} "
+                  f"spread/rise {r['spread'] / max(r['rise'], 1e-12):.2f}", flush=True)
     return results
 
 
@@ -93,7 +93,8 @@ def main() -> None:
     args = ap.parse_args()
     results = run(args.params.split(","), args.yarns, args.scale, args.spp, args.seeds_per_eval)
     text = summary(results, args.scale, args.spp, args.yarns)
-    text += f"Fiber seeds averaged per evaluation: {args.seeds_per_eval}; group weights {WEIGHTS}.\n"
+    text += (f"Fiber seeds averaged per evaluation: {args.seeds_per_eval}; "
+             f"group weights {WEIGHTS}.\n")
     if args.out:
         write_text(args.out, text)
         write_text(args.out.rsplit(".", 1)[0] + ".json", json.dumps(results, indent=1))

@@ -60,8 +60,8 @@ class SceneOptions:
 
     roughness: float = 0.5
     sheen: float = 0.5
-    backdrop: float = 0.05
-    key_light: float = 4.0
+    backdrop: float = 0.03
+    key_light: float = 5.0
     room_light: float = 0.15
     max_depth: int = 3
 
@@ -150,7 +150,7 @@ def scene_dict(scale: float, spp: int, curves: str, color: tuple[float, float, f
                      "to_world": T().translate([0, 0, -BACKDROP_DEPTH_MM]) @ T().scale(200),
                      "bsdf": {"type": "diffuse",
                               "reflectance": {"type": "rgb", "value": [opts.backdrop] * 3}}},
-        "key_left": _soft_box((-150.0, 150.0, 200.0), 150.0, opts.key_light),
-        "key_right": _soft_box((150.0, 120.0, 200.0), 150.0, 0.6 * opts.key_light),
+        "key_left": _soft_box((-200.0, 50.0, 200.0), 150.0, opts.key_light),
+        "key_right": _soft_box((200.0, -30.0, 200.0), 150.0, 0.6 * opts.key_light),
         "room": {"type": "constant", "radiance": {"type": "rgb", "value": opts.room_light}},
     }

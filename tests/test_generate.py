@@ -1,0 +1,157 @@
+"""``ipm generate``: the dataset contract, determinism per sample, kill-and-resume, bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from ipm.errors import UserError
+from ipm.params import YarnParams
+from ipm.render.dataset import (
+    MANIFEST,
+    GenerateOptions,
+    generate_dataset,
+    read_manifest,
+    sample_plan,
+    sample_seeds,
+)
+from ipm.render.photometric import Photometric
+
+TINY = ("--scale", "0.1", "--spp", "2")
+
+
+def ipm_args(*args):
+    return [sys.executable, "-m", "ipm", *map(str, args)]
+
+
+def ipm(*args):
+    return subprocess.run(ipm_args(*args), capture_output=True, text=True)
+
+
+def check_dataset(folder, count):
+    """Exactly ``count`` samples, one per index, each a whole PNG of the right size."""
+    lines = (folder / MANIFEST).read_text().splitlines()
+    records = [json.loads(line) for line in lines]
+    assert sorted(r["index"] for r in records) == list(range(count))
+    for r in records:
+        with Image.open(folder / r["image"]) as img:
+            img.load()
+            assert img.mode == "RGB" and img.size == (r["width"], r["height"])
+    return records
+
+
+def test_sample_seeds_depend_on_seed_split_index_only():
+    a, b = sample_seeds(0, "train", 5), sample_seeds(0, "train", 5)
+    assert a.fiber_seed == b.fiber_seed and a.render_seed == b.render_seed
+    assert a.params_rng.random() == b.params_rng.random()
+    others = [sample_seeds(1, "train", 5), sample_seeds(0, "val", 5), sample_seeds(0, "train", 6)]
+    assert all(o.fiber_seed != a.fiber_seed for o in others)
+    opts = GenerateOptions(count=10, seed=0)
+    assert sample_plan(opts, 3) == sample_plan(opts, 3)
+
+
+def test_manifest_contract(tmp_path):
+    records = generate_dataset(tmp_path / "ds", GenerateOptions(count=3, seed=1, scale=0.1,
+                                                                spp=2), workers=2)
+    assert records == read_manifest(tmp_path / "ds")
+    assert records == check_dataset(tmp_path / "ds", 3)
+    for r in records:
+        assert {"image", "params", "seed", "split", "index", "scale", "spp", "pixel_size_mm",
+                "photometric"} <= set(r)
+        assert r["image"] == f"images/{r['index']:06d}.png" and r["split"] == "train"
+        assert r["pixel_size_mm"] == pytest.approx(0.1)
+        YarnParams.from_dict(r["params"])
+        Photometric.from_dict(r["photometric"])
+    assert len({r["seed"] for r in records}) == 3
+
+
+def test_kill_and_rerun_gives_exactly_n_samples_with_the_same_bytes(tmp_path):
+    count, out = 8, tmp_path / "ds"
+    args = ipm_args("generate", "--count", count, "--out", out, "--seed", 3, "--workers", 2,
+                    *TINY)
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        manifest = out / MANIFEST
+        if manifest.is_file() and len(manifest.read_text().splitlines()) >= 2:
+            break
+        time.sleep(0.02)
+    os.killpg(proc.pid, signal.SIGKILL)  # the whole run, workers included, mid-write
+    proc.wait()
+    assert len((out / MANIFEST).read_text().splitlines()) < count, "killed too late"
+    # a torn last line, as a kill during the append leaves it
+    with open(out / MANIFEST, "a") as f:
+        f.write('{"index": 7, "image": "images/0000')
+    r = subprocess.run(args, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    resumed = check_dataset(out, count)
+    fresh = ipm("generate", "--count", count, "--out", tmp_path / "fresh", "--seed", 3,
+                "--workers", 1, *TINY)
+    assert fresh.returncode == 0, fresh.stderr
+    assert resumed == check_dataset(tmp_path / "fresh", count)
+    for rec in resumed:
+        assert (out / rec["image"]).read_bytes() == (tmp_path / "fresh" / rec["image"]).read_bytes()
+
+
+def test_rerun_completes_and_grows(tmp_path):
+    out = tmp_path / "ds"
+    generate_dataset(out, GenerateOptions(count=2, scale=0.1, spp=2), workers=1)
+    (out / "images" / "000001.png").unlink()  # an image lost: its line is dropped, re-rendered
+    records = generate_dataset(out, GenerateOptions(count=4, scale=0.1, spp=2), workers=2)
+    assert [r["index"] for r in records] == [0, 1, 2, 3] == [r["index"] for r in
+                                                             check_dataset(out, 4)]
+
+
+def test_bad_input_one_line_exit_2_nothing_lost(tmp_path):
+    out = tmp_path / "ds"
+    assert ipm("generate", "--count", 2, "--out", out, "--seed", 0, *TINY).returncode == 0
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    foreign = tmp_path / "photos"
+    foreign.mkdir()
+    (foreign / "mine.jpg").write_bytes(b"jpeg")
+    a_file = tmp_path / "file"
+    a_file.write_text("x")
+    cases = [(("--count", 3, "--out", out, "--seed", 1, *TINY), "other settings (seed)"),
+             (("--count", 3, "--out", foreign, *TINY), "not empty"),
+             (("--count", 3, "--out", a_file / "ds", *TINY), "missing or not writable"),
+             (("--count", 3, "--out", out, "--variant", "llvm_rgb", *TINY),
+              "unknown Mitsuba variant"),
+             (("--count", 3, "--out", out, "--split", "a/b", *TINY), "split")]
+    for args, message in cases:
+        r = ipm("generate", *args)
+        assert r.returncode == 2, (args, r.stderr)
+        assert r.stderr.count("\n") == 1 and message in r.stderr, r.stderr
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    assert (foreign / "mine.jpg").read_bytes() == b"jpeg"
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes to read-only folders")
+def test_read_only_folder_is_refused(tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    with pytest.raises(UserError, match="not writable"):
+        generate_dataset(ro / "ds", GenerateOptions(count=1, scale=0.1, spp=1))
+
+
+def test_read_manifest_missing_is_user_error(tmp_path):
+    with pytest.raises(UserError, match="not a dataset"):
+        read_manifest(tmp_path)
+
+
+def test_photometric_off_is_nominal(tmp_path):
+    r = ipm("generate", "--count", 1, "--out", tmp_path / "ds", "--no-photometric", *TINY)
+    assert r.returncode == 0, r.stderr
+    rec = read_manifest(tmp_path / "ds")[0]
+    ph = Photometric.from_dict(rec["photometric"])
+    assert ph.exposure_stops == 0 and ph.shift_mm == (0, 0) and ph.noise == (0, 0)
+    assert np.allclose(ph.white_balance, 1)

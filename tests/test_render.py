@@ -1,0 +1,208 @@
+"""The scene and the renderer: real llvm_ad_rgb images checked statistically, determinism,
+photometric variation, the variant choice and the ``ipm render`` / ``ipm doctor`` CLI."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from ipm import preset
+from ipm.errors import UserError
+from ipm.render.photometric import (
+    NO_VARIATION,
+    NOMINAL,
+    Photometric,
+    PhotometricRanges,
+    apply_to_image,
+)
+from ipm.render.renderer import Renderer, srgb8_to_linear, to_srgb8, world_curves
+from ipm.render.scene import frame_size, pixel_size_mm, yarn_to_world
+from ipm.render.variant import llvm_major, requested_variant
+
+
+def ipm(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "ipm", *map(str, args)], capture_output=True,
+                          text=True, cwd=cwd)
+
+
+@pytest.fixture(scope="module")
+def renderer():
+    r = Renderer()
+    assert r.variant == "llvm_ad_rgb"
+    return r
+
+
+# -- smoke: frame, transforms, buffers ---------------------------------------------------------
+def test_frame_and_pixel_pitch():
+    assert frame_size(1) == (2000, 600) and frame_size(0.25) == (500, 150)
+    assert pixel_size_mm(0.5) == pytest.approx(0.02)
+    with pytest.raises(UserError, match="scale"):
+        frame_size(0)
+
+
+def test_yarn_axis_maps_to_image_horizontal():
+    m = yarn_to_world()
+    assert np.allclose(m[:3, :3] @ [0, 0, 1], [1, 0, 0])  # generator z -> image right
+    assert np.isclose(np.linalg.det(m[:3, :3]), 1)
+    shifted = yarn_to_world((0.5, -0.2), 90)
+    assert np.allclose(shifted[:3, :3] @ [0, 0, 1], [0, 1, 0]) and np.allclose(
+        shifted[:2, 3], [0.5, -0.2])
+
+
+def test_world_curves_segments_skip_fiber_ends():
+    from ipm import generate
+
+    fs = generate(preset("grey_thin"), 0)
+    points, segments = world_curves(fs, yarn_to_world())
+    assert points.shape == (len(fs.points), 4)
+    assert len(segments) == len(fs.points) - fs.num_fibers
+    assert not np.isin(fs.offsets[1:] - 1, segments).any()
+    assert np.allclose(points[:, 3], np.repeat(fs.round_radii(), np.diff(fs.offsets)))
+
+
+def test_srgb_roundtrip():
+    x = np.linspace(0, 1, 256, dtype=np.float32)[None, :, None].repeat(3, -1)
+    assert np.abs(srgb8_to_linear(to_srgb8(x)) - x).max() < 0.01
+
+
+# -- variants -----------------------------------------------------------------------------------
+def test_variant_choice():
+    assert requested_variant() in ("llvm_ad_rgb", "cuda_ad_rgb", "scalar_rgb")
+    assert requested_variant("cuda_ad_rgb") == "cuda_ad_rgb"
+    with pytest.raises(UserError, match="unknown Mitsuba variant 'llvm_rgb'"):
+        requested_variant("llvm_rgb")
+    assert llvm_major("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1") == 19
+    assert llvm_major("/usr/lib/x86_64-linux-gnu/libLLVM-15.so.1") == 15
+    assert llvm_major("/usr/lib/llvm-14/lib/libLLVM.so") == 14
+
+
+# -- a real image, checked statistically ----------------------------------------------------------
+def yarn_rows(image: np.ndarray) -> tuple[np.ndarray, float]:
+    """Rows where most pixels are yarn (brighter than 2.5x the backdrop) and the centroid of
+    the per-row yarn fraction."""
+    lum = image.mean(-1)
+    backdrop = np.median(np.concatenate([lum[:4], lum[-4:]]))
+    fraction = (lum > 2.5 * backdrop).mean(1)
+    centroid = float((fraction * np.arange(len(fraction))).sum() / fraction.sum())
+    return np.flatnonzero(fraction > 0.5), centroid
+
+
+@pytest.mark.parametrize("name", ["light", "golden", "pink_6ply"])
+def test_real_render_core_thickness_centre_contrast(renderer, name):
+    p, scale = preset(name), 0.25
+    image = renderer.render(p, seed=0, scale=scale, spp=4)
+    assert image.shape == (150, 500, 3) and image.dtype == np.float32
+    assert np.isfinite(image).all()
+    rows, centroid = yarn_rows(image)
+    # the core is one band, centred (the scene puts the yarn axis on the middle row)
+    assert len(rows) and rows.max() - rows.min() + 1 == len(rows)
+    assert abs(centroid - (image.shape[0] - 1) / 2) < 2.5
+    # its thickness in pixels matches the parameters via pixel_size_mm: about
+    # 2 (R_ply + r_y) .. 2 (R_ply + r_x); the sparse outer fibers of the plies thin it a bit
+    px = pixel_size_mm(scale)
+    lo, hi = 2 * (p.R_ply + p.r_y) / px, 2 * (p.R_ply + p.r_x) / px
+    assert 0.85 * lo <= len(rows) <= 1.1 * hi, (len(rows), lo, hi)
+    # yarn against backdrop: the core is several times brighter than the card
+    lum = image.mean(-1)
+    backdrop = np.median(np.concatenate([lum[:4], lum[-4:]]))
+    assert lum[rows].mean() > 4 * backdrop
+    # and has the yarn's hue: its mean colour correlates with the albedo
+    assert np.corrcoef(image[rows].mean((0, 1)), p.color)[0, 1] > 0.9
+
+
+def test_same_settings_same_image(renderer):
+    p = preset("grey_thin")
+    a = renderer.render(p, seed=3, scale=0.2, spp=2, render_seed=7)
+    renderer.render(preset("rose"), seed=1, scale=0.2, spp=2)  # swap buffers in between
+    b = renderer.render(p, seed=3, scale=0.2, spp=2, render_seed=7)
+    c = renderer.render(p, seed=3, scale=0.2, spp=2, render_seed=8)
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)
+    assert abs(a.mean() - c.mean()) < 0.05 * a.mean()  # another sampler seed: same statistics
+
+
+# -- photometric variation ---------------------------------------------------------------
+def test_photometric_draw_is_seeded_and_recorded():
+    ranges = PhotometricRanges()
+    a = ranges.draw(np.random.default_rng(1))
+    assert a == ranges.draw(np.random.default_rng(1)) != ranges.draw(np.random.default_rng(2))
+    assert Photometric.from_dict(json.loads(json.dumps(a.to_dict()))) == a
+    assert abs(a.exposure_stops) <= ranges.exposure_stops
+    assert np.mean(a.white_balance) == pytest.approx(1)
+    assert NO_VARIATION.draw(np.random.default_rng(0)) == Photometric(
+        noise_seed=NO_VARIATION.draw(np.random.default_rng(0)).noise_seed)
+
+
+def test_photometric_image_effects():
+    image = np.full((20, 30, 3), 0.2, np.float32)
+    assert apply_to_image(image, NOMINAL) == pytest.approx(image)
+    brighter = apply_to_image(image, Photometric(exposure_stops=1.0))
+    assert brighter == pytest.approx(2 * image)
+    noisy = apply_to_image(image, Photometric(noise=(1e-3, 1e-5), noise_seed=4))
+    assert noisy.std() == pytest.approx(np.sqrt(1e-3 * 0.2 + 1e-5), rel=0.2)
+    assert np.array_equal(noisy, apply_to_image(image, Photometric(noise=(1e-3, 1e-5),
+                                                                   noise_seed=4)))
+
+
+def test_photometric_shift_moves_the_yarn(renderer):
+    p = preset("golden")
+    up = renderer.render(p, 0, 0.2, 2, photometric=Photometric(shift_mm=(0.0, 0.6)))
+    _, c_up = yarn_rows(up)
+    _, c0 = yarn_rows(renderer.render(p, 0, 0.2, 2))
+    assert c0 - c_up == pytest.approx(0.6 / pixel_size_mm(0.2), abs=2)  # image rows go down
+
+
+# -- CLI ----------------------------------------------------------------------------------------
+def test_cli_render_writes_png_and_record(tmp_path):
+    r = ipm("render", "--preset", "grey_thin", "-o", tmp_path / "yarn.png", "--scale", 0.1,
+            "--spp", 2, "--seed", 4)
+    assert r.returncode == 0, r.stderr
+    img = Image.open(tmp_path / "yarn.png")
+    assert img.mode == "RGB" and img.size == (200, 60)
+    rec = json.loads((tmp_path / "yarn.json").read_text())
+    assert rec["seed"] == 4 and rec["spp"] == 2 and rec["scale"] == 0.1
+    assert rec["pixel_size_mm"] == pytest.approx(0.1)
+    assert rec["params"] == preset("grey_thin").to_dict()
+    again = ipm("render", "--preset", "grey_thin", "-o", tmp_path / "again.png", "--scale",
+                0.1, "--spp", 2, "--seed", 4)
+    assert again.returncode == 0
+    assert (tmp_path / "yarn.png").read_bytes() == (tmp_path / "again.png").read_bytes()
+
+
+def test_cli_render_xml_scene_loads(tmp_path):
+    r = ipm("render", "--preset", "grey_thin", "-o", tmp_path / "yarn.xml", "--format", "xml")
+    assert r.returncode == 0, r.stderr
+    from ipm.render.variant import mitsuba
+
+    mi = mitsuba()
+    scene = mi.load_file(str(tmp_path / "yarn.xml"))
+    assert np.array(mi.render(scene, spp=1)).shape == (150, 500, 3)
+
+
+def test_cli_render_bad_input_one_line_exit_2(tmp_path):
+    keep = tmp_path / "yarn.png"
+    keep.write_bytes(b"precious")
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({**preset("rose").to_dict(), "n": 9}))
+    not_a_folder = tmp_path / "file"
+    not_a_folder.write_text("x")
+    cases = [(("render", bad, "-o", keep), "n = 9"),
+             (("render", "--preset", "rose", "-o", not_a_folder / "y.png"), "does not exist"),
+             (("render", "--preset", "rose", "-o", keep, "--variant", "llvm_rgb"),
+              "unknown Mitsuba variant")]
+    for args, message in cases:
+        r = ipm(*args)
+        assert r.returncode == 2, (args, r.stderr)
+        assert r.stderr.count("\n") == 1 and message in r.stderr, r.stderr
+    assert keep.read_bytes() == b"precious"
+
+
+def test_cli_doctor():
+    r = ipm("doctor")
+    assert r.returncode == 0
+    assert "llvm_ad_rgb  renders" in r.stdout and "libLLVM" in r.stdout and "torch" in r.stdout

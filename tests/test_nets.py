@@ -1,0 +1,207 @@
+"""ipm.nets building blocks: smoke / cardinality / exception / gradcheck (kornia style),
+tasks, safetensors round trips and the exposure augmentation."""
+
+import numpy as np
+import pytest
+import torch
+
+from ipm.errors import UserError
+from ipm.nets.decoder import Decoder
+from ipm.nets.encoders import Encoder
+from ipm.nets.heads import RegressionHead
+from ipm.nets.losses import (
+    LatentLoss,
+    LatentSMA,
+    ReconLoss,
+    RegressLoss,
+    latent_loss,
+    recon_loss,
+    regress_loss,
+)
+from ipm.nets.model import NetConfig, YarnNet, crop_size
+from ipm.nets.objective import Objective
+from ipm.nets.store import load_checkpoint, load_net, load_tensors, save_checkpoint, save_net
+from ipm.nets.tasks import ENSEMBLE_TASKS, REG_TASKS, TASKS
+from ipm.params import PARAM_ORDER, THICKNESS_CLASSES
+
+torch.manual_seed(0)
+torch.set_num_threads(1)  # tiny nets; see test_nets_train.py
+
+
+# -- cardinality -------------------------------------------------------------------------------
+@pytest.mark.parametrize("name, width, channels", [
+    ("resnet18", 0.25, 128), ("resnet34", 0.25, 128), ("convnext", 0.25, 128),
+    ("resnet18", 1.0, 512)])
+def test_encoder_shapes(name, width, channels):
+    z = Encoder(name, width)(torch.zeros(2, 3, 64, 160))
+    assert z.shape == (2, channels, 2, 5)
+
+
+def test_full_width_resnets_match_torchvision():
+    import torchvision
+
+    for name in ("resnet18", "resnet34"):
+        ref = getattr(torchvision.models, name)(weights=None)
+        ours = {k: v.shape for k, v in Encoder(name).body.state_dict().items()}
+        theirs = [v.shape for k, v in ref.state_dict().items() if not k.startswith("fc.")]
+        assert list(ours.values()) == theirs
+
+
+def test_head_decoder_shapes():
+    z = torch.zeros(3, 64, 4, 9)
+    assert RegressionHead(5, channels=64)(z).shape == (3, 5)
+    assert RegressionHead(5, channels=64, mlp=False)(z).shape == (3, 5)
+    out = Decoder(channels=64)(z)
+    assert out.shape == (3, 3, 64, 144) and out.abs().max() <= 1
+
+
+def test_crop_size_is_papers_at_scale_one():
+    assert crop_size(1.0) == (584, 1200) and crop_size(0.25) == (146, 300)
+
+
+@pytest.mark.parametrize("task", [t.name for t in (*ENSEMBLE_TASKS, *REG_TASKS)])
+def test_net_outputs(task):
+    net = YarnNet(NetConfig(task, width=0.125, input_scale=0.1))
+    z, y = net(torch.zeros(2, 3, *net.config.crop))
+    assert y.shape == (2, TASKS[task].outputs)
+    p = net.predict(torch.zeros(1, 3, *net.config.crop))
+    if TASKS[task].is_classification:
+        assert p.sum().item() == pytest.approx(1, abs=1e-5)
+
+
+# -- exceptions --------------------------------------------------------------------------------
+def test_shape_checks():
+    with pytest.raises(ValueError, match=r"\(B, 3, H, W\)"):
+        Encoder("resnet18", 0.25)(torch.zeros(3, 70, 150))
+    with pytest.raises(ValueError, match="latent codes"):
+        RegressionHead(2, channels=64)(torch.zeros(2, 32, 3, 3))
+    with pytest.raises(ValueError, match="shapes differ"):
+        regress_loss(torch.zeros(2, 3), torch.zeros(2, 4))
+    with pytest.raises(ValueError, match="shapes differ"):
+        latent_loss(torch.zeros(2, 8, 2, 2), torch.zeros(8, 3, 3))
+    with pytest.raises(ValueError, match="unknown encoder"):
+        Encoder("vgg")
+    with pytest.raises(ValueError, match="input scale"):
+        NetConfig("alpha", input_scale=2)
+    with pytest.raises(RuntimeError, match="no real-image batch"):
+        _ = LatentSMA().mean
+
+
+# -- losses ------------------------------------------------------------------------------------
+def test_loss_values_and_twins():
+    a, b = torch.rand(4, 3), torch.rand(4, 3)
+    assert RegressLoss()(a, b) == regress_loss(a, b) == (a - b).abs().mean()
+    x, r = torch.rand(2, 3, 8, 8), torch.rand(2, 3, 4, 4)
+    target = x.reshape(2, 3, 4, 2, 4, 2).mean((3, 5))
+    assert torch.allclose(ReconLoss()(r, x), ((r - target) ** 2).mean())
+    z, mu = torch.rand(2, 4, 2, 2), torch.rand(4, 2, 2)
+    assert torch.allclose(LatentLoss()(z, mu), ((z - mu) ** 2).mean())
+
+
+def test_gradcheck():
+    a = torch.rand(3, 2, dtype=torch.float64, requires_grad=True)
+    b = torch.rand(3, 2, dtype=torch.float64) + 2  # keep |a - b| away from the kink
+    assert torch.autograd.gradcheck(regress_loss, (a, b))
+    r = torch.rand(1, 3, 2, 2, dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(recon_loss, (r, torch.rand(1, 3, 4, 4, dtype=torch.float64)))
+    z = torch.rand(2, 3, 1, 1, dtype=torch.float64, requires_grad=True)
+    mu = torch.rand(3, 1, 1, dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(lambda z: latent_loss(z, mu), (z,))
+    latent_loss(z, mu).backward()
+    assert mu.grad is None  # stop-gradient
+
+
+def test_latent_sma_keeps_last_batches():
+    sma = LatentSMA(batches=5)
+    for v in range(8):
+        sma.update(torch.full((2, 3, 1, 1), float(v)))
+    assert sma.mean.flatten().tolist() == [5.0] * 3  # mean of batches 3..7
+
+
+def test_objective_terms():
+    net = YarnNet(NetConfig("raw", width=0.125, input_scale=0.1, decoder=True))
+    obj = Objective(net, recon=True, latent=True)
+    x = torch.rand(2, 3, *net.config.crop) * 2 - 1
+    terms = obj(x, torch.rand(2, 9), x_real=x.flip(0))
+    assert set(terms) == {"task", "recon", "latent", "loss"}
+    terms["loss"].backward()
+    assert all(p.grad is not None for p in net.parameters())
+    with pytest.raises(ValueError, match="needs real images"):
+        obj(x, torch.rand(2, 9))
+
+
+# -- tasks -------------------------------------------------------------------------------------
+def test_ensemble_decides_every_parameter(sampled_params):
+    for tasks in (ENSEMBLE_TASKS, REG_TASKS):
+        decided = [k for t in tasks for k in t.decides]
+        assert sorted(decided) == sorted(PARAM_ORDER)
+    p = sampled_params[0]
+    values = {}
+    for t in ENSEMBLE_TASKS:
+        y = t.target(p)
+        out = np.eye(t.outputs)[int(y)] if t.is_classification else y
+        values.update(t.decode(out))
+    assert values["n"] == p.n and values["m"] == p.m
+    assert (values["t_x"], values["t_y"]) == THICKNESS_CLASSES[p.thickness]
+    assert values["alpha_ply"] == pytest.approx(p.alpha_ply)
+
+
+# -- storage -----------------------------------------------------------------------------------
+def test_net_round_trip(tmp_path):
+    net = YarnNet(NetConfig("flyaways", width=0.125, input_scale=0.1, decoder=True)).eval()
+    save_net(tmp_path / "f", net, {"epoch": 3})
+    back, info = load_net(tmp_path / "f")
+    assert info["epoch"] == 3 and back.d is None
+    x = torch.rand(1, 3, *net.config.crop)
+    assert torch.equal(back.predict(x), net.predict(x))
+    tensors, _ = load_tensors(tmp_path / "f" / "model.safetensors")
+    assert not any(k.startswith("d.") for k in tensors)
+
+
+def test_checkpoint_round_trip(tmp_path):
+    net = YarnNet(NetConfig("alpha", width=0.125, input_scale=0.1))
+    opt = torch.optim.Adam(net.parameters(), 1e-3)
+    net(torch.rand(2, 3, *net.config.crop))[1].sum().backward()
+    opt.step()
+    save_checkpoint(tmp_path / "c.safetensors", net, opt, {"epoch": 2, "history": [1.5]})
+    net2 = YarnNet(NetConfig("alpha", width=0.125, input_scale=0.1))
+    opt2 = torch.optim.Adam(net2.parameters(), 1e-3)
+    state = load_checkpoint(tmp_path / "c.safetensors", net2, opt2)
+    assert state == {"epoch": 2, "history": [1.5]}
+    for a, b in zip(net.state_dict().values(), net2.state_dict().values(), strict=True):
+        assert torch.equal(a, b)
+    s1, s2 = opt.state_dict(), opt2.state_dict()
+    assert torch.equal(s1["state"][0]["exp_avg_sq"], s2["state"][0]["exp_avg_sq"])
+    assert s1["param_groups"][0]["lr"] == s2["param_groups"][0]["lr"]
+
+
+@pytest.mark.parametrize("damage, message", [
+    (lambda p: p.unlink(), "not found"),
+    (lambda p: p.write_bytes(b"\x00" * 10), "corrupt or not safetensors"),
+    (lambda p: p.write_bytes(p.read_bytes()[: len(p.read_bytes()) // 2]), "corrupt"),
+    (lambda p: p.write_bytes(b"\x80\x04\x95pickle"), "corrupt or not safetensors"),
+])
+def test_bad_weights(tmp_path, damage, message):
+    net = YarnNet(NetConfig("alpha", width=0.125, input_scale=0.1))
+    save_net(tmp_path, net, {})
+    damage(tmp_path / "model.safetensors")
+    with pytest.raises(UserError, match=message):
+        load_net(tmp_path)
+
+
+def test_weights_of_another_net(tmp_path):
+    save_net(tmp_path, YarnNet(NetConfig("alpha", width=0.125, input_scale=0.1)), {})
+    other = tmp_path / "o"
+    save_net(other, YarnNet(NetConfig("flyaways", width=0.125, input_scale=0.1)), {})
+    (tmp_path / "model.safetensors").write_bytes((other / "model.safetensors").read_bytes())
+    with pytest.raises(UserError, match="does not match"):
+        load_net(tmp_path)
+
+
+# -- data --------------------------------------------------------------------------------------
+def test_exposure_lut():
+    from ipm.nets.data import exposure_lut
+
+    np.testing.assert_allclose(exposure_lut(0.0)[[0, 255]], [-1.0, 1.0], atol=1e-6)
+    assert np.all(np.diff(exposure_lut(0.3)) >= 0)
+    assert exposure_lut(0.5)[128] > exposure_lut(0.0)[128] > exposure_lut(-0.5)[128]

@@ -22,14 +22,13 @@ from ipm.io import write_text
 from ipm.params import PAPER_INTERVALS
 from ipm.photo import linear_to_srgb
 from ipm.prior import GuidedPrior
+from ipm.refine.objective import DEFAULT_WEIGHTS
 
 COMMAND = "python -m ipm.benchmarks.identifiability --out docs/identifiability.md"
 CANDIDATES = ("alpha", "alpha_ply", "R_ply", "r_x", "r_y", "j", "j_xy", "p", "beta", "l_hair",
               "s", "l_loop", "d_mean", "d_std")
 STEPS = (-0.1, -0.075, -0.05, -0.025, 0.0, 0.025, 0.05, 0.075, 0.1)
 SPREAD_SEEDS = (0, 1, 2, 3, 4)
-#: Group weights ~ 1 / (the group's seed noise at the truth), measured on three yarns.
-WEIGHTS = {"core": 1.0, "flyaways": 0.5, "orientation": 1.0, "spectrum": 0.2, "histogram": 10.0}
 
 
 def sweep(objective, truth, name: str) -> dict:
@@ -57,8 +56,7 @@ def run(names, yarns: int, scale: float, spp: int, seeds_per_eval: int) -> dict:
     results: dict[str, list] = {n: [] for n in names}
     for i, truth in enumerate(truths):
         photo = linear_to_srgb(renderer.render(truth, 1000 + i, scale, spp, render_seed=7))
-        objective = RenderObjective(renderer, photo, scale, spp, weights=WEIGHTS,
-                                    seeds_per_eval=seeds_per_eval)
+        objective = RenderObjective(renderer, photo, scale, spp, seeds_per_eval=seeds_per_eval)
         for n in names:
             results[n].append(sweep(objective, truth, n))
             r = results[n][-1]
@@ -94,7 +92,7 @@ def main() -> None:
     results = run(args.params.split(","), args.yarns, args.scale, args.spp, args.seeds_per_eval)
     text = summary(results, args.scale, args.spp, args.yarns)
     text += (f"Fiber seeds averaged per evaluation: {args.seeds_per_eval}; "
-             f"group weights {WEIGHTS}.\n")
+             f"group weights {DEFAULT_WEIGHTS}.\n")
     if args.out:
         write_text(args.out, text)
         write_text(args.out.rsplit(".", 1)[0] + ".json", json.dumps(results, indent=1))

@@ -107,6 +107,11 @@ app.command("train")(nets_commands.train)
 app.command("predict")(nets_commands.predict)
 app.command("saliency")(nets_commands.saliency)
 
+# refine/
+from ipm.refine import commands as refine_commands  # noqa: E402
+
+app.command("fit")(refine_commands.fit)
+
 
 def main() -> None:
     try:

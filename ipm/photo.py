@@ -134,3 +134,13 @@ def linear_to_srgb(x: np.ndarray) -> np.ndarray:
     x = np.clip(np.asarray(x, dtype=np.float32), 0, 1)
     return np.where(x <= 0.0031308, 12.92 * x,
                     1.055 * x ** (1 / 2.4) - 0.055).astype(np.float32)
+
+
+def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write an sRGB image ((H, W, 3) float in [0, 1] or uint8) as an RGB PNG, atomically."""
+    from ipm.io import atomic_path
+
+    if image.dtype != np.uint8:
+        image = (np.clip(image, 0, 1) * 255).round().astype(np.uint8)
+    with atomic_path(path) as tmp:
+        Image.fromarray(np.ascontiguousarray(image), "RGB").save(tmp, format="PNG")

@@ -15,6 +15,11 @@ from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb
 from ipm.refine.stats import stat_distance, yarn_statistics
 
+#: Group weights ~ 1 / (each group's seed noise at the truth), measured on three sampled
+#: yarns with ``python -m ipm.benchmarks.identifiability`` (docs/identifiability.md).
+DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.5, "orientation": 1.0, "spectrum": 0.2,
+                   "histogram": 10.0}
+
 
 def centre_crop(img: np.ndarray, h: int, w: int) -> np.ndarray:
     top, left = (img.shape[0] - h) // 2, (img.shape[1] - w) // 2
@@ -44,7 +49,8 @@ class RenderObjective:
         w, h = frame_size(scale)
         self.size = (min(h, photo.shape[0]), min(w, photo.shape[1]))
         self.renderer, self.scale, self.spp, self.render_seed = renderer, scale, spp, render_seed
-        self.weights, self.seeds_per_eval = weights, seeds_per_eval
+        self.weights = DEFAULT_WEIGHTS if weights is None else weights
+        self.seeds_per_eval = seeds_per_eval
         self.photo_stats = yarn_statistics(to_tensor(centre_crop(photo, *self.size)))
         self.evaluations = 0
 

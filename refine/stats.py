@@ -38,21 +38,31 @@ def _check_image(x: Tensor, name: str) -> None:
         raise ValueError(f"{name} is too small for yarn statistics: {tuple(x.shape)}")
 
 
-def _centred_deviation(gray: Tensor) -> Tensor:
-    """(B, 1, H, W) signed deviation from the background, shifted (bilinear, sub-pixel) so
-    that the core's centre sits on the middle row.  The centre is the centroid of the
-    per-row median of |deviation|, which sparse flyaways do not move."""
+def yarn_centre(gray: Tensor) -> tuple[Tensor, Tensor]:
+    """Background level (B,) and the row (B,) of the core's centre in a ``(B, 1, H, W)``
+    image: the centroid of the upper half of the per-row median of |deviation|, which
+    sparse flyaways do not move."""
     h = gray.shape[-2]
     edge = max(1, h // 12)
     border = torch.cat([gray[..., :edge, :], gray[..., -edge:, :]], dim=-2)
-    bg = border.flatten(1).median(dim=1).values.view(-1, 1, 1, 1)
-    dev = gray - bg
-    weight = dev.abs().median(dim=-1).values.squeeze(1)  # (B, H)
+    bg = border.flatten(1).median(dim=1).values
+    weight = (gray - bg.view(-1, 1, 1, 1)).abs().median(dim=-1).values.squeeze(1)  # (B, H)
     weight = torch.clamp(weight - 0.5 * weight.amax(dim=-1, keepdim=True), min=0)
     rows = torch.arange(h, dtype=gray.dtype, device=gray.device)
-    centre = (weight * rows).sum(-1) / weight.sum(-1).clamp_min(1e-8)
-    shift = torch.stack([torch.zeros_like(centre), (h - 1) / 2 - centre], dim=-1)
-    return kornia.geometry.transform.translate(dev, shift, padding_mode="border")
+    return bg, (weight * rows).sum(-1) / weight.sum(-1).clamp_min(1e-8)
+
+
+def centre_rows(image: Tensor, centre: Tensor) -> Tensor:
+    """Shift ``(B, C, H, W)`` vertically (bilinear, sub-pixel) so row ``centre`` (B,) lands
+    on the middle row."""
+    shift = torch.stack([torch.zeros_like(centre), (image.shape[-2] - 1) / 2 - centre], dim=-1)
+    return kornia.geometry.transform.translate(image, shift, padding_mode="border")
+
+
+def _centred_deviation(gray: Tensor) -> Tensor:
+    """(B, 1, H, W) signed deviation from the background, the core centred vertically."""
+    bg, centre = yarn_centre(gray)
+    return centre_rows(gray - bg.view(-1, 1, 1, 1), centre)
 
 
 def _strip_mean(x: Tensor, strips: int) -> Tensor:

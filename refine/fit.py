@@ -1,0 +1,175 @@
+"""``ipm fit``: the nets' guess, refined by render-and-compare (the part beyond the paper).
+
+Steps: exposure check of the photo; the neural ensemble's parameters; the fiber colour (the
+paper does not infer appearance) matched to the photo's core; then, with ``refine``, the
+NLopt search (:mod:`ipm.refine.search`) of the continuous raw-yarn parameters on the
+statistics loss (:mod:`ipm.refine.objective`) at a low resolution.  The losses reported for
+both results are means over the search seed and the re-scoring seeds, so they compare.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from ipm.errors import UserError
+from ipm.params import YarnParams
+from ipm.photo import linear_to_srgb, srgb_to_linear, to_scene_pitch
+from ipm.refine.objective import RenderObjective, centre_crop, to_tensor
+from ipm.refine.search import SearchOptions, SearchResult, search
+from ipm.refine.stats import centre_rows, yarn_centre
+
+#: A photo with more than this fraction of pixels at either end of the range is strongly
+#: under- or over-exposed, where the paper's nets do not hold.
+CLIPPED_WARN = 0.02
+#: The core must differ from the background by this much (sRGB) for a yarn to be seen.
+MIN_CORE_CONTRAST = 0.03
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """scale, spp: resolution and samples of the renders inside the search.  seeds_per_eval:
+    fiber seeds averaged per evaluation.  search: the NLopt options.  display_scale,
+    display_spp: the renders written for the user."""
+
+    scale: float = 0.2
+    spp: int = 4
+    seeds_per_eval: int = 2
+    search: SearchOptions = field(default_factory=SearchOptions)
+    display_scale: float = 0.5
+    display_spp: int = 16
+
+    def __post_init__(self) -> None:
+        if not 0.05 <= self.scale <= 1 or not 0.05 <= self.display_scale <= 1:
+            raise UserError(f"scales must be in [0.05, 1], got {self.scale}, "
+                            f"{self.display_scale}")
+        if self.spp < 1 or self.display_spp < 1 or self.seeds_per_eval < 1:
+            raise UserError("spp and seeds_per_eval must be >= 1")
+
+
+@dataclass
+class FitResult:
+    neural: YarnParams
+    refined: YarnParams
+    loss_neural: float
+    loss_refined: float
+    improved: bool
+    warnings: list[str] = field(default_factory=list)
+    search: SearchResult | None = None
+    seconds: float = 0.0
+
+    def to_dict(self, options: FitOptions, pixel_size_mm: float) -> dict:
+        return {
+            "neural": self.neural.to_dict(), "refined": self.refined.to_dict(),
+            "loss": {"neural": self.loss_neural, "refined": self.loss_refined},
+            "improved": self.improved, "warnings": self.warnings,
+            "evaluations": self.search.evaluations if self.search else 0,
+            "seconds": round(self.seconds, 2),
+            "settings": {**asdict(options), "pixel_size_mm": pixel_size_mm},
+        }
+
+
+def exposure_warning(image: np.ndarray) -> str | None:
+    """A warning naming the clipped fractions if the photo is strongly mis-exposed."""
+    gray = image.mean(axis=-1)
+    dark, bright = float((gray <= 1 / 255).mean()), float((gray >= 254 / 255).mean())
+    if max(dark, bright) > CLIPPED_WARN:
+        return (f"photo looks {'over' if bright > dark else 'under'}-exposed: {bright:.1%} of "
+                f"pixels clipped white, {dark:.1%} black; the nets hold for photos that are "
+                "not strongly over- or under-exposed")
+    return None
+
+
+def core_contrast(image_srgb: np.ndarray) -> float:
+    """Largest per-row median deviation from the background (sRGB): a yarn's core makes it
+    large, an empty or flat photo leaves it near 0."""
+    gray = to_tensor(image_srgb).mean(dim=1, keepdim=True)
+    bg, _ = yarn_centre(gray)
+    return float((gray - bg.view(-1, 1, 1, 1)).abs().median(dim=-1).values.max())
+
+
+def core_colour(image_srgb: np.ndarray) -> np.ndarray:
+    """Mean linear RGB (3,) of the middle rows of the yarn's core."""
+    t = to_tensor(image_srgb)
+    _, centre = yarn_centre(t.mean(dim=1, keepdim=True))
+    centred = centre_rows(t, centre)[0].permute(1, 2, 0).numpy()
+    h = centred.shape[0]
+    band = centred[h // 2 - max(1, h // 30): h // 2 + max(1, h // 30) + 1]
+    return srgb_to_linear(band).reshape(-1, 3).mean(axis=0)
+
+
+def match_colour(objective: RenderObjective, params: YarnParams, photo: np.ndarray,
+                 rounds: int = 2) -> YarnParams:
+    """Scale the fiber albedo per channel until the render's core colour matches the
+    photo's (the radiance grows about linearly with the albedo; two rounds suffice)."""
+    target = core_colour(photo)
+    for _ in range(rounds):
+        got = core_colour(objective.render(params, 0))
+        colour = np.clip(np.array(params.color) * target / np.maximum(got, 1e-4), 0.01, 0.95)
+        params = params.replace(color=tuple(float(c) for c in colour))
+    return params
+
+
+def fit(photo: np.ndarray, pixel_size_mm: float, neural: YarnParams, renderer,
+        options: FitOptions = FitOptions(), refine: bool = True,
+        on_eval: Callable[[int, float, float], None] | None = None) -> FitResult:
+    """Fit one photo ((H, W, 3) sRGB in [0, 1], ``pixel_size_mm`` per pixel at the yarn)
+    starting from the nets' parameters ``neural``."""
+    t0 = time.perf_counter()
+    warnings = [w for w in (exposure_warning(photo),) if w]
+    small = to_scene_pitch(photo, pixel_size_mm, options.scale)
+    objective = RenderObjective(renderer, small, options.scale, options.spp,
+                                seeds_per_eval=options.seeds_per_eval)
+    if core_contrast(small) < MIN_CORE_CONTRAST:
+        warnings.append("no yarn found in the photo (its core does not stand out from the "
+                        "background); the search is skipped and the neural result kept")
+        refine = False
+    else:
+        neural = match_colour(objective, neural, small)
+    if not refine:
+        loss = _mean_loss(objective, neural, options.search)
+        return FitResult(neural, neural, loss, loss, False, warnings,
+                         seconds=time.perf_counter() - t0)
+    result = search(objective, neural, options.search, on_eval)
+    refined = match_colour(objective, result.best, small) if result.improved else neural
+    if not result.improved:
+        warnings.append("the search found no parameters with a lower loss than the nets' "
+                        "(is there a yarn in the photo?); the neural result is kept")
+    return FitResult(neural, refined, result.start_loss, result.best_loss, result.improved,
+                     warnings, result, time.perf_counter() - t0)
+
+
+def _mean_loss(objective: RenderObjective, p: YarnParams, opts: SearchOptions) -> float:
+    return float(np.mean([objective(p, s) for s in (opts.fiber_seed, *opts.rescore_seeds)]))
+
+
+def display_renders(renderer, photo: np.ndarray, pixel_size_mm: float, result: FitResult,
+                    options: FitOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(photo, neural render, refined render) as sRGB at ``display_scale``, cut to their
+    common extent."""
+    shown = to_scene_pitch(photo, pixel_size_mm, options.display_scale)
+    renders = [linear_to_srgb(renderer.render(p, options.search.fiber_seed,
+                                              options.display_scale, options.display_spp))
+               for p in (result.neural, result.refined)]
+    h = min(shown.shape[0], renders[0].shape[0])
+    w = min(shown.shape[1], renders[0].shape[1])
+    return tuple(centre_crop(img, h, w) for img in (shown, *renders))
+
+
+def compare_image(panels: list[np.ndarray], labels: list[str]) -> np.ndarray:
+    """Panels stacked top to bottom (the yarn is wide), each with its label underneath;
+    (H, W, 3) uint8."""
+    from PIL import Image, ImageDraw
+
+    h, w = panels[0].shape[:2]
+    bar = 18
+    out = Image.new("RGB", (w, len(panels) * (h + bar)), (255, 255, 255))
+    draw = ImageDraw.Draw(out)
+    for i, (img, label) in enumerate(zip(panels, labels, strict=True)):
+        out.paste(Image.fromarray((np.clip(img, 0, 1) * 255).round().astype(np.uint8)),
+                  (0, i * (h + bar)))
+        draw.text((4, i * (h + bar) + h + 3), label, fill=(0, 0, 0))
+    return np.asarray(out)

@@ -1,0 +1,83 @@
+"""`ipm fit` end to end on a synthetic photo with a tiny trained model and a tiny budget."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from ipm.params import PARAM_ORDER, YarnParams
+from ipm.photo import linear_to_srgb, write_png
+from ipm.presets import preset
+
+
+def ipm(*args):
+    return subprocess.run([sys.executable, "-m", "ipm", *map(str, args)], capture_output=True,
+                          text=True)
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory):
+    from ipm.nets.config import TrainConfig
+    from ipm.nets.sketchdata import write_sketch_dataset
+    from ipm.nets.train import train
+
+    root = tmp_path_factory.mktemp("fit-models")
+    write_sketch_dataset(root / "train", 8, seed=0, scale=0.1)
+    write_sketch_dataset(root / "val", 4, seed=1, scale=0.1, split="val")
+    cfg = TrainConfig(data=root / "train", val=root / "val", out=root / "run", preset="reg",
+                      width=0.125, input_scale=0.1, epochs=1, steps_per_epoch=2, batch_size=4)
+    train(cfg, log=lambda line: None)
+    return root / "run"
+
+
+@pytest.fixture(scope="module")
+def photo(tmp_path_factory):
+    """The golden preset rendered at scale 0.25 (0.04 mm per pixel), as an sRGB PNG."""
+    from ipm.render.renderer import Renderer
+
+    path = tmp_path_factory.mktemp("photo") / "golden.png"
+    write_png(path, linear_to_srgb(Renderer().render(preset("golden"), 5, 0.25, 8)))
+    return path
+
+
+def test_fit_refine_writes_everything_and_does_not_get_worse(models, photo, tmp_path):
+    out = tmp_path / "fit"
+    r = ipm("fit", photo, "--refine", "--models", models, "--pixel-size", 0.04, "--budget", 12,
+            "--out", out)
+    assert r.returncode == 0, r.stderr
+    for name in ("params.json", "neural.png", "refined.png", "compare.png"):
+        assert (out / name).is_file(), name
+    result = json.loads((out / "params.json").read_text())
+    neural, refined = (YarnParams.from_dict(result[k]) for k in ("neural", "refined"))
+    assert set(PARAM_ORDER) <= set(result["refined"])
+    assert result["loss"]["refined"] <= result["loss"]["neural"]
+    assert result["settings"]["pixel_size_mm"] == 0.04 and result["evaluations"] <= 12
+    assert neural.n == refined.n and neural.m == refined.m  # discrete parameters: the nets'
+
+
+def test_no_yarn_keeps_the_neural_result(models, tmp_path):
+    flat = tmp_path / "flat.png"
+    write_png(flat, np.full((150, 500, 3), 0.4, np.float32))
+    r = ipm("fit", flat, "--refine", "--models", models, "--pixel-size", 0.04, "--budget", 12,
+            "--out", tmp_path / "fit")
+    assert r.returncode == 0, r.stderr
+    assert "no yarn found" in r.stderr
+    result = json.loads((tmp_path / "fit" / "params.json").read_text())
+    assert result["refined"] == result["neural"] and not result["improved"]
+
+
+@pytest.mark.parametrize("content, message", [(b"not an image", "not an image"),
+                                              (b"", "")])
+def test_bad_photo_one_line(models, tmp_path, content, message):
+    bad = tmp_path / "bad.png"
+    bad.write_bytes(content)
+    r = ipm("fit", bad, "--models", models, "--out", tmp_path / "fit")
+    assert r.returncode == 2 and r.stderr.startswith("error: ") and r.stderr.count("\n") == 1
+    assert message in r.stderr and not (tmp_path / "fit" / "params.json").exists()
+
+
+def test_missing_models_one_line(photo, tmp_path):
+    r = ipm("fit", photo, "--models", tmp_path / "none", "--out", tmp_path / "fit")
+    assert r.returncode == 2 and "holds no trained models" in r.stderr

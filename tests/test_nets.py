@@ -146,6 +146,15 @@ def test_ensemble_decides_every_parameter(sampled_params):
     assert values["alpha_ply"] == pytest.approx(p.alpha_ply)
 
 
+def test_decode_extremes_stay_in_range():
+    from ipm.params import PAPER_INTERVALS
+
+    for t in REG_TASKS:
+        for x in (-1.0, 0.0, 1.0, 2.0):
+            for k, v in t.decode(np.full(t.outputs, x)).items():
+                assert PAPER_INTERVALS[k].lo <= v <= PAPER_INTERVALS[k].hi
+
+
 # -- storage -----------------------------------------------------------------------------------
 def test_net_round_trip(tmp_path):
     net = YarnNet(NetConfig("flyaways", width=0.125, input_scale=0.1, decoder=True)).eval()

@@ -38,6 +38,8 @@ def train(
     batch_size: Annotated[int | None, typer.Option(help="global batch (split over torchrun "
                                                    "processes)")] = None,
     lr: Annotated[float | None, typer.Option(help="Adam learning rate")] = None,
+    schedule: Annotated[str | None, typer.Option(help="cosine | constant (learning rate over "
+                                                 "the epochs)")] = None,
     lambda_recon: Annotated[float | None, typer.Option()] = None,
     lambda_latent: Annotated[float | None, typer.Option()] = None,
     steps_per_epoch: Annotated[int | None, typer.Option(help="cap steps per epoch (smoke "
@@ -55,7 +57,7 @@ def train(
     from ipm.nets.train import train as run
 
     given = dict(encoder=encoder, width=width, input_scale=input_scale, epochs=epochs,
-                 batch_size=batch_size, lr=lr, lambda_recon=lambda_recon,
+                 batch_size=batch_size, lr=lr, schedule=schedule, lambda_recon=lambda_recon,
                  lambda_latent=lambda_latent, steps_per_epoch=steps_per_epoch, seed=seed,
                  device=device, workers=workers, real_pixel_size=real_pixel_size)
     options = {k: v for k, v in given.items() if v is not None}

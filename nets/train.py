@@ -16,6 +16,7 @@ writes.
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from collections.abc import Callable, Iterator
@@ -128,6 +129,15 @@ def summary_line(task: Task, m: dict) -> str:
 
 
 # -- one net -----------------------------------------------------------------------------------
+def learning_rate(cfg: TrainConfig, epoch: int) -> float:
+    """The rate of ``epoch`` (1-based): constant, or cosine from lr down to lr / 100; a
+    function of the epoch alone, so a resumed run continues the same schedule."""
+    if cfg.schedule == "constant" or cfg.epochs == 1:
+        return cfg.lr
+    floor = cfg.lr / 100
+    return floor + 0.5 * (cfg.lr - floor) * (1 + math.cos(math.pi * (epoch - 1) / (cfg.epochs - 1)))
+
+
 def _real_batches(real: Crops, batch_size: int, dist: Dist, seed: int) -> Iterator[torch.Tensor]:
     """Endless real-image batches, a new shuffle and new crops per pass."""
     g, epoch = torch.Generator(), 0
@@ -196,6 +206,8 @@ def train_net(name: str, cfg: TrainConfig, train_frames: Frames, val_frames: Fra
     for epoch in range(state["epoch"] + 1, cfg.epochs + 1):
         t0 = time.perf_counter()
         train_crops.set_epoch(epoch)
+        for group in optimizer.param_groups:
+            group["lr"] = learning_rate(cfg, epoch)
         shuffle_gen.manual_seed(cfg.seed * 1_000_003 + epoch)
         if sampler is not None:
             sampler.set_epoch(epoch)

@@ -214,3 +214,15 @@ def test_exposure_lut():
     np.testing.assert_allclose(exposure_lut(0.0)[[0, 255]], [-1.0, 1.0], atol=1e-6)
     assert np.all(np.diff(exposure_lut(0.3)) >= 0)
     assert exposure_lut(0.5)[128] > exposure_lut(0.0)[128] > exposure_lut(-0.5)[128]
+
+
+def test_learning_rate_schedule(tmp_path):
+    from ipm.nets.config import TrainConfig
+    from ipm.nets.train import learning_rate
+
+    cfg = TrainConfig(data=tmp_path, val=tmp_path, out=tmp_path, epochs=5, lr=1e-3)
+    rates = [learning_rate(cfg, e) for e in range(1, 6)]
+    assert rates[0] == pytest.approx(1e-3) and rates[-1] == pytest.approx(1e-5)
+    assert all(a > b for a, b in zip(rates, rates[1:]))
+    assert learning_rate(cfg.replace(schedule="constant"), 4) == 1e-3
+    assert TrainConfig.paper(data=tmp_path, val=tmp_path, out=tmp_path).schedule == "constant"

@@ -168,6 +168,9 @@ def train_net(name: str, cfg: TrainConfig, train_frames: Frames, val_frames: Fra
     train_targets = np.stack([task.target(p) for p in train_frames.labels])
     val_targets = np.stack([task.target(p) for p in val_frames.labels])
     base = baseline(task, train_targets, val_targets)
+    # The predict-the-mean baseline on any test set: mean normalised label, class frequencies.
+    train_mean = (np.bincount(train_targets, minlength=task.outputs) / len(train_targets)
+                  if task.is_classification else train_targets.mean(0)).tolist()
 
     state = {"epoch": 0, "best_epoch": None, "best_loss": None, "history": [],
              "seconds": 0.0, "net": ncfg.to_dict()}
@@ -240,6 +243,7 @@ def train_net(name: str, cfg: TrainConfig, train_frames: Frames, val_frames: Fra
             if best:
                 state["best_epoch"], state["best_loss"] = epoch, metrics["loss"]
                 save_net(folder, net, {"epoch": epoch, "val": metrics, "baseline": base,
+                                       "train_mean": train_mean,
                                        "train": {k: v for k, v in cfg.to_dict().items()
                                                  if k not in RESUMABLE},
                                        "train_images": len(train_frames),

@@ -1,0 +1,86 @@
+"""Accuracy of a trained ensemble on a held-out dataset made with ``ipm generate`` at seeds
+never used for training: per-parameter MAE in raw units and in % of the parameter's
+interval, beside the predict-the-mean baseline (the mean training label, stored with each
+net) and the paper's validation table; ply-count and thickness-class accuracy beside the
+majority class.
+
+    python -m ipm.benchmarks.nets_accuracy --data data/test [--models DIR]
+        [--out benchmarks/results/nets_accuracy.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from ipm.benchmarks.machine import markdown_header
+from ipm.io import write_text
+from ipm.nets.data import read_manifest
+from ipm.nets.ensemble import Ensemble
+from ipm.params import PAPER_INTERVALS, PARAM_ORDER, THICKNESS_CLASSES
+from ipm.photo import read_image
+
+#: The paper's validation errors of the parameter-specific networks (Table "Validation loss
+#: of different networks").
+PAPER = {"r_x": 0.0080, "r_y": 0.0066, "m": 12, "alpha": 0.0807, "alpha_ply": 0.0614,
+         "R_ply": 0.00444}
+RAW_CONTINUOUS = ("m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply")
+
+
+def mean_prediction(ens: Ensemble) -> dict[str, float]:
+    """Raw parameter values of the predict-the-mean baseline, from the nets' train_mean."""
+    values: dict[str, float] = {}
+    for name, net in ens.nets.items():
+        spec, mean = net.config.spec, np.asarray(ens.info[name]["train_mean"])
+        values.update(spec.decode(mean))
+    return values
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", required=True, help="held-out set (`ipm generate --out`)")
+    ap.add_argument("--models", default=None, help="default: the shipped models")
+    ap.add_argument("--crops", type=int, default=3)
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    ens = Ensemble.load(args.models)
+    records = read_manifest(args.data)
+    pred = [ens.predict(read_image(r.image), r.pixel_size_mm, args.crops) for r in records]
+    true = [r.params for r in records]
+    pairs = list(zip(pred, true, strict=True))
+    base = mean_prediction(ens)
+    rows = ["| parameter | MAE | % of range | baseline MAE | % of range | vs baseline | "
+            "paper (val.) |", "|---|---|---|---|---|---|---|"]
+    for k in PARAM_ORDER:
+        if k in ("n", "t_x", "t_y"):
+            continue
+        iv = PAPER_INTERVALS[k]
+        span = iv.hi - iv.lo
+        mae = float(np.mean([abs(getattr(p, k) - getattr(t, k)) for p, t in pairs]))
+        b = float(np.mean([abs(base[k] - getattr(t, k)) for t in true]))
+        name = f"**{k}**" if k in RAW_CONTINUOUS else k
+        rows.append(f"| {name} | {mae:.4g} {iv.unit} | {100 * mae / span:.1f} | {b:.4g} | "
+                    f"{100 * b / span:.1f} | {100 * (1 - mae / b):+.0f}% | "
+                    f"{PAPER.get(k, '')} |")
+    acc_n = np.mean([p.n == t.n for p, t in pairs])
+    acc_t = np.mean([p.thickness == t.thickness for p, t in pairs])
+    maj_n = max(np.mean([t.n == c for t in true]) for c in range(2, 7))
+    maj_t = max(np.mean([t.thickness == c for t in true]) for c in THICKNESS_CLASSES)
+    rows += ["", f"Ply count n: accuracy {100 * acc_n:.1f}% (majority class "
+             f"{100 * maj_n:.1f}%).  Fiber thickness class: accuracy {100 * acc_t:.1f}% "
+             f"(majority class {100 * maj_t:.1f}%).", "",
+             f"{len(records)} images from `{args.data}`; models `{ens.folder}`; "
+             f"{args.crops} crops per net.  Bold: the continuous raw-yarn parameters, which "
+             "must beat the baseline by at least 40%."]
+    command = "python -m ipm.benchmarks.nets_accuracy --data DIR --out " \
+              "benchmarks/results/nets_accuracy.md"
+    text = (markdown_header("Nets accuracy on held-out renders", command, "torch") + "\n"
+            + "\n".join(rows) + "\n")
+    if args.out:
+        write_text(args.out, text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()

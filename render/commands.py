@@ -120,6 +120,10 @@ def generate(
                                               "and rotation and sensor noise per sample "
                                               "(seeded, recorded in the manifest)")] = True,
     variant: VariantOpt = None,
+    ray: Annotated[str | None, typer.Option(help="render on Ray instead of a local pool: "
+                                            "'auto' joins a running cluster, 'local' starts "
+                                            "one, or host:port (pip install -e '.[ray]')")]
+    = None,
 ) -> None:
     """Make the synthetic dataset: guided-prior yarns rendered in THE scene, with
     ``manifest.jsonl`` (one JSON object per sample) and ``images/``."""
@@ -156,5 +160,5 @@ def generate(
             bar.update(task, completed=done, rate=f"{rate:,.0f} img/h" if rate else "")
 
         records = generate_dataset(out, opts, workers=workers, variant=variant,
-                                   progress=progress)
+                                   progress=progress, ray=ray)
     typer.echo(f"{len(records)} samples in {out}", err=True)

@@ -201,14 +201,48 @@ def _write_manifest(folder: Path, records: dict[int, dict[str, Any]]) -> None:
 Progress = Callable[[int, int], None]
 
 
+class _RayRenderer:
+    """A Ray actor: one :class:`Renderer` per actor process, samples rendered in turn."""
+
+    def __init__(self, variant: str | None, scene: SceneOptions, threads: int) -> None:
+        _init_worker(variant, scene, threads)
+
+    def make(self, folder: str, opts: GenerateOptions, index: int) -> dict[str, Any]:
+        return make_sample(folder, opts, index)
+
+
+def _ray_submit(address: str, folder: Path, opts: GenerateOptions, todo: list[int],
+                workers: int | None, variant: str | None) -> set:
+    """Futures of the samples ``todo`` on a Ray cluster: ``address`` "auto" joins a running
+    one (``ray start --head``), "local" starts one on this machine; a process that already
+    called ``ray.init`` keeps its cluster.  Actors write into ``folder``, which must be a
+    path every node shares."""
+    try:
+        import ray
+    except ImportError:
+        raise UserError("--ray needs the ray extra: pip install -e '.[ray]'") from None
+    if not ray.is_initialized():
+        try:
+            ray.init(address=None if address == "local" else address, log_to_driver=False,
+                     include_dashboard=False)
+        except ConnectionError as e:
+            raise UserError(f"cannot reach a Ray cluster at {address!r}: {e}") from None
+    cpus = int(ray.cluster_resources().get("CPU", 1))
+    actors = [ray.remote(num_cpus=1)(_RayRenderer).remote(variant, opts.scene, 1)
+              for _ in range(min(workers or cpus, cpus, len(todo)))]
+    return {actors[k % len(actors)].make.remote(str(folder), opts, i).future()
+            for k, i in enumerate(todo)}
+
+
 def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: int | None = None,
-                     variant: str | None = None, progress: Progress | None = None
-                     ) -> list[dict[str, Any]]:
-    """Make (or complete) the dataset in ``folder`` with a local process pool.
+                     variant: str | None = None, progress: Progress | None = None,
+                     ray: str | None = None) -> list[dict[str, Any]]:
+    """Make (or complete) the dataset in ``folder`` with a local process pool, or on Ray.
 
     workers: processes (default: one per core), each with its own :class:`Renderer` and
     cores / workers render threads.  progress: called as ``progress(done, count)``.
-    Returns the manifest records, sorted by index.
+    ray: a Ray address ("auto", "local", ``host:port``) to render on Ray actors instead;
+    the samples are the same bytes either way.  Returns the manifest records by index.
     """
     folder = Path(folder)
     cores = os.cpu_count() or 1
@@ -223,13 +257,15 @@ def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: 
     if progress:
         progress(len(done), opts.count)
     if todo:
-        # spawn, not fork: Dr.Jit's threads do not survive a fork
-        pool = ProcessPoolExecutor(min(workers, len(todo)), mp_context=get_context("spawn"),
-                                   initializer=_init_worker,
-                                   initargs=(variant, opts.scene, max(1, cores // workers)))
+        pool = None
+        if ray is None:  # spawn, not fork: Dr.Jit's threads do not survive a fork
+            pool = ProcessPoolExecutor(min(workers, len(todo)), mp_context=get_context("spawn"),
+                                       initializer=_init_worker,
+                                       initargs=(variant, opts.scene, max(1, cores // workers)))
         try:
             with open(folder / MANIFEST, "a", encoding="utf-8") as manifest:
-                pending = {pool.submit(make_sample, str(folder), opts, i) for i in todo}
+                pending = ({pool.submit(make_sample, str(folder), opts, i) for i in todo}
+                           if pool else _ray_submit(ray, folder, opts, todo, workers, variant))
                 while pending:
                     finished, pending = wait(pending, return_when=FIRST_COMPLETED)
                     for fut in finished:
@@ -240,6 +276,7 @@ def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: 
                     if progress:
                         progress(len(done), opts.count)
         finally:
-            pool.shutdown(cancel_futures=True)
+            if pool:
+                pool.shutdown(cancel_futures=True)
     _write_manifest(folder, done)
     return [done[i] for i in sorted(done)]

@@ -9,6 +9,7 @@ through ``mi.traverse``.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
 from dataclasses import asdict
@@ -50,6 +51,23 @@ def world_curves(fibers: FiberSet, to_world: np.ndarray) -> tuple[np.ndarray, np
     return points, np.flatnonzero(~last).astype(np.uint32)
 
 
+@contextlib.contextmanager
+def _compile_lock():
+    """Serialise the first render (kernel compilation) of a scale across processes.
+
+    Dr.Jit caches compiled kernels on disk; when two processes compiled the same kernels at
+    the same moment we saw one of them render every image with other sample values (a valid
+    image, but not the same bytes), so the compile runs under an exclusive file lock."""
+    import fcntl
+
+    with open(Path(tempfile.gettempdir(), "ipm-drjit-compile.lock"), "a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
 class Renderer:
     """Renders yarns in THE scene; one per process (kernels are compiled once per scale).
 
@@ -64,6 +82,7 @@ class Renderer:
         self.mi = mitsuba(variant)
         self.options = options
         self._scenes: dict[float, tuple[object, object]] = {}
+        self._compiled: set[float] = set()
         if threads is not None:
             import drjit as dr
 
@@ -114,7 +133,12 @@ class Renderer:
             params["yarn.control_point_count"] = len(points)
             params["yarn.bsdf.base_color.value"] = self.mi.Color3f(*color)
             params.update()
-        image = self.mi.render(scene, spp=spp, seed=render_seed)
+        if scale in self._compiled:
+            image = self.mi.render(scene, spp=spp, seed=render_seed)
+        else:
+            with _compile_lock():
+                image = self.mi.render(scene, spp=spp, seed=render_seed)
+            self._compiled.add(scale)
         return np.array(image, dtype=np.float32)[..., :3]
 
     def render(self, params: YarnParams, seed: int, scale: float, spp: int,

@@ -15,5 +15,5 @@ if ! ls /usr/lib/*/libLLVM.so.19* >/dev/null 2>&1 && ! ls /usr/lib/llvm-19/lib/l
 fi
 export PIP_ROOT_USER_ACTION=ignore
 python3 -m pip install -q "torch==2.14.1" "torchvision==0.29.1"
-python3 -m pip install -q -e ".[dev]"
+python3 -m pip install -q -e ".[dev,ray]"
 python3 -c "import ipm" && echo "ipm installed: $(command -v ipm)"

@@ -112,7 +112,7 @@ def generate(
     split: Annotated[str, typer.Option(help="split name recorded per sample (train, val)")]
     = "train",
     scale: Annotated[float | None, typer.Option(help="resolution (1 = 2000 x 600 px); "
-                                                "default 0.5")] = None,
+                                                "default 0.25")] = None,
     spp: Annotated[int | None, typer.Option(min=1, help="samples per pixel; default 8")] = None,
     workers: Annotated[int | None, typer.Option(min=1, help="render processes; default: one "
                                                 "per core")] = None,

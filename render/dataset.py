@@ -44,10 +44,12 @@ MANIFEST = "manifest.jsonl"
 SETTINGS = "dataset.json"
 IMAGES = "images"
 
-#: Defaults chosen by measurement (benchmarks/README.md, "Render speed"): 1000 x 300 px keeps
-#: the thinnest fibers at 0.6 px and the common ones at 1-2 px, and 8 spp is where the
-#: render noise falls below the fiber contrast; 2000 images take under an hour on 2 cores.
-DEFAULT_SCALE = 0.5
+#: Defaults chosen by measurement (benchmarks/README.md, "Render speed"): scale 0.25 (500 x
+#: 150 px) is the input scale of the default nets, so their data needs no resampling, and
+#: 2000 images took 24 min on 2 cores; 8 spp is where the render noise falls below the fiber
+#: contrast.  The thinnest fibers are 0.3 px there: scale 0.5 keeps them at 0.6 px, for nets
+#: trained at a higher input scale (``--scale 0.5``).
+DEFAULT_SCALE = 0.25
 DEFAULT_SPP = 8
 
 

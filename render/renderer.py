@@ -16,12 +16,11 @@ from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
-from PIL import Image
 
 from ipm.fibers import FiberSet
 from ipm.generator import generate
-from ipm.io import atomic_path
 from ipm.params import YarnParams
+from ipm.photo import linear_to_srgb, srgb_to_linear, write_png
 from ipm.render.photometric import NOMINAL, Photometric, apply_to_image
 from ipm.render.scene import (
     DEFAULT_OPTIONS,
@@ -153,18 +152,14 @@ class Renderer:
 
 def to_srgb8(image: np.ndarray) -> np.ndarray:
     """Linear RGB (H, W, 3) float -> 8-bit sRGB (H, W, 3) uint8 (the sRGB curve, clipped)."""
-    x = np.clip(image, 0.0, 1.0)
-    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-    return np.round(srgb * 255.0).astype(np.uint8)
+    return np.round(linear_to_srgb(image) * 255.0).astype(np.uint8)
 
 
 def srgb8_to_linear(image: np.ndarray) -> np.ndarray:
     """8-bit sRGB (H, W, 3) uint8 -> linear RGB float32 in [0, 1]."""
-    x = image.astype(np.float32) / 255.0
-    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+    return srgb_to_linear(image.astype(np.float32) / 255.0)
 
 
 def save_png(path: str | os.PathLike, image: np.ndarray) -> None:
     """Write a linear image (H, W, 3) float as an 8-bit sRGB RGB PNG, atomically."""
-    with atomic_path(path) as tmp:
-        Image.fromarray(to_srgb8(image), "RGB").save(tmp, format="PNG")
+    write_png(path, to_srgb8(image))

@@ -168,10 +168,8 @@ def test_cli_render_writes_png_and_record(tmp_path):
     assert rec["seed"] == 4 and rec["spp"] == 2 and rec["scale"] == 0.1
     assert rec["pixel_size_mm"] == pytest.approx(0.1)
     assert rec["params"] == preset("grey_thin").to_dict()
-    again = ipm("render", "--preset", "grey_thin", "-o", tmp_path / "again.png", "--scale",
-                0.1, "--spp", 2, "--seed", 4)
-    assert again.returncode == 0
-    assert (tmp_path / "yarn.png").read_bytes() == (tmp_path / "again.png").read_bytes()
+    # same bytes from another process: tests/test_generate.py
+    # test_samples_are_the_same_bytes_across_processes (slow, intermittent)
 
 
 def test_cli_render_xml_scene_loads(tmp_path):

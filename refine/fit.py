@@ -137,7 +137,7 @@ def fit(photo: np.ndarray, pixel_size_mm: float, neural: YarnParams, renderer,
     refined = match_colour(objective, result.best, small) if result.improved else neural
     if not result.improved:
         warnings.append("the search found no parameters with a lower loss than the nets' "
-                        "(is there a yarn in the photo?); the neural result is kept")
+                        "over the re-scoring seeds; the neural result is kept")
     return FitResult(neural, refined, result.start_loss, result.best_loss, result.improved,
                      warnings, result, time.perf_counter() - t0)
 

@@ -13,9 +13,8 @@ import time
 
 import numpy as np
 
-from ipm.benchmarks.machine import markdown_header
+from ipm.benchmarks.machine import markdown_header, publish
 from ipm.generator import generate, levels_of, vertex_spacing
-from ipm.io import write_text
 from ipm.presets import preset
 
 COMMAND = "python -m ipm.benchmarks.generator_speed --out benchmarks/results/generator_speed.md"
@@ -49,9 +48,7 @@ def main() -> None:
         rows.append(f"| {name} | {vertex_spacing(levels_of(p)):.3f} | {v} | {t:.3f} | "
                     f"{PAPER_MEDIAN_S / t:.0f}x faster |")
     text = markdown_header("Fiber generation speed", COMMAND) + "\n" + "\n".join(rows) + "\n"
-    if args.out:
-        write_text(args.out, text)
-    print(text)
+    publish(text, args.out)
 
 
 if __name__ == "__main__":

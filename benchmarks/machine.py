@@ -46,3 +46,12 @@ def markdown_header(title: str, command: str, *packages: str) -> str:
     lines = [f"# {title}", "", f"Made by `{command}`.", ""]
     lines += [f"- {k}: {v}" for k, v in info.items()]
     return "\n".join(lines) + "\n"
+
+
+def publish(text: str, out: str | None) -> None:
+    """Print a report and, with ``out``, write it there (atomically)."""
+    from ipm.io import write_text
+
+    if out:
+        write_text(out, text)
+    print(text)

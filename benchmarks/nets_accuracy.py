@@ -14,8 +14,7 @@ import argparse
 
 import numpy as np
 
-from ipm.benchmarks.machine import markdown_header
-from ipm.io import write_text
+from ipm.benchmarks.machine import markdown_header, publish
 from ipm.nets.data import read_manifest
 from ipm.nets.ensemble import Ensemble
 from ipm.params import PAPER_INTERVALS, PARAM_ORDER, THICKNESS_CLASSES
@@ -77,9 +76,7 @@ def main() -> None:
               "benchmarks/results/nets_accuracy.md"
     text = (markdown_header("Nets accuracy on held-out renders", command, "torch") + "\n"
             + "\n".join(rows) + "\n")
-    if args.out:
-        write_text(args.out, text)
-    print(text)
+    publish(text, args.out)
 
 
 if __name__ == "__main__":

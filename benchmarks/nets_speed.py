@@ -24,8 +24,7 @@ import time
 import numpy as np
 import torch
 
-from ipm.benchmarks.machine import markdown_header
-from ipm.io import write_text
+from ipm.benchmarks.machine import markdown_header, publish
 from ipm.nets.config import TrainConfig
 from ipm.nets.data import Crops, Frames
 from ipm.nets.ensemble import Ensemble
@@ -153,9 +152,7 @@ def main() -> None:
     rows += ["", f"Load average (1 / 5 / 15 min) before: {before}; after: {load()}."]
     text = (markdown_header("Nets speed", COMMAND, "torch", "torchvision") + "\n"
             + "\n".join(rows) + "\n")
-    if args.out:
-        write_text(args.out, text)
-    print(text)
+    publish(text, args.out)
 
 
 if __name__ == "__main__":

@@ -9,8 +9,7 @@ import argparse
 
 import numpy as np
 
-from ipm.benchmarks.machine import markdown_header
-from ipm.io import write_text
+from ipm.benchmarks.machine import markdown_header, publish
 from ipm.params import PAPER_INTERVALS
 from ipm.prior import GuidedPrior
 
@@ -36,9 +35,7 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=10_000)
     args = ap.parse_args()
     text = report(args.count)
-    if args.out:
-        write_text(args.out, text)
-    print(text)
+    publish(text, args.out)
 
 
 if __name__ == "__main__":

@@ -25,8 +25,7 @@ import time
 
 import numpy as np
 
-from ipm.benchmarks.machine import markdown_header
-from ipm.io import write_text
+from ipm.benchmarks.machine import markdown_header, publish
 from ipm.prior import GuidedPrior
 from ipm.render.dataset import DEFAULT_SCALE, DEFAULT_SPP, GenerateOptions, generate_dataset
 from ipm.render.renderer import Renderer, to_srgb8
@@ -133,9 +132,7 @@ def main() -> None:
     out += ["", f"Peak memory (max RSS): this process, which rendered every scale up to full "
             f"resolution: {self_mb:,.0f} MB; largest `ipm generate` worker: {child_mb:,.0f} MB."]
     text = "\n".join(out) + "\n"
-    if args.out:
-        write_text(args.out, text)
-    print(text)
+    publish(text, args.out)
 
 
 if __name__ == "__main__":

@@ -32,7 +32,8 @@ Conventions and deviations (the paper leaves these open):
   ``d = |d_mean + d_std R|``.  Eq. 10 writes ``v`` without a vertex index; we read it as one
   radial vector per loop, the segment's middle vertex, so a loop is an arch pulled out of
   the yarn.  (With each vertex's own ``v_i`` the copied helix balloons into a spiral around
-  the yarn that, seen from the side, is a sine wave, unlike the loops of real yarns.)  Hairs are squeezed along the axis about their root by
+  the yarn that, seen from the side, is a sine wave, unlike the loops of real yarns.)
+  Hairs are squeezed along the axis about their root by
   ``1 - s / 2`` (the paper gives no formula; ``s = 0`` must leave the hair unsqueezed, Fig. 6
   f) and then rotated about the root so that the root-to-tip chord makes the angle ``beta``
   with the yarn axis, leaning outwards.

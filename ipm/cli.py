@@ -12,26 +12,15 @@ import numpy as np
 import typer
 
 from ipm.errors import UserError
-from ipm.io import write_text
+from ipm.io import check_writable_folder, write_text
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Fiber-level procedural yarn models from one macro photo.")
 
 
-def fail(message: str) -> typer.Exit:
-    typer.echo(f"error: {message}", err=True)
-    return typer.Exit(2)
-
-
 def check_output(path: Path) -> None:
     """Fail before any work if ``path`` cannot be written (missing or read-only folder)."""
-    parent = path.parent if str(path.parent) else Path(".")
-    if not parent.is_dir():
-        raise UserError(f"output folder {parent} does not exist")
-    import os
-
-    if not os.access(parent, os.W_OK):
-        raise UserError(f"output folder {parent} is not writable")
+    check_writable_folder(path.parent if str(path.parent) else Path("."))
 
 
 @app.command()

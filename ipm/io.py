@@ -28,6 +28,17 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         tmp.unlink(missing_ok=True)
 
 
+def check_writable_folder(folder: Path) -> None:
+    """Raise a :class:`~ipm.errors.UserError` naming ``folder`` unless it exists and is
+    writable: a command checks this before any work, so it fails before writing anything."""
+    from ipm.errors import UserError
+
+    if not folder.is_dir():
+        raise UserError(f"output folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise UserError(f"output folder {folder} is not writable")
+
+
 def write_text(path: str | os.PathLike, text: str) -> None:
     with atomic_path(path) as tmp:
         tmp.write_text(text)

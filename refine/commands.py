@@ -11,6 +11,7 @@ import typer
 
 from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
+from ipm.io import check_writable_folder
 
 
 def _prepare_folder(folder: Path) -> None:
@@ -18,10 +19,7 @@ def _prepare_folder(folder: Path) -> None:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise UserError(f"cannot create output folder {folder}: {e.strerror}") from None
-    import os
-
-    if not os.access(folder, os.W_OK):
-        raise UserError(f"output folder {folder} is not writable")
+    check_writable_folder(folder)
 
 
 def fit(

@@ -4,7 +4,6 @@ commands only: importing ``ipm`` (and its CLI) must stay light."""
 from __future__ import annotations
 
 import json
-import os
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -12,19 +11,13 @@ from typing import Annotated
 import typer
 
 from ipm.errors import UserError
+from ipm.io import check_writable_folder
 
 DEFAULT_RENDER_SCALE = 0.25
 DEFAULT_RENDER_SPP = 16
 VariantOpt = Annotated[str | None, typer.Option(
     help="Mitsuba variant: llvm_ad_rgb (default, CPU), cuda_ad_rgb or scalar_rgb; "
          "also the IPM_VARIANT environment variable")]
-
-
-def _check_writable_folder(folder: Path) -> None:
-    if not folder.is_dir():
-        raise UserError(f"output folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise UserError(f"output folder {folder} is not writable")
 
 
 class RenderFormat(str, Enum):
@@ -58,7 +51,7 @@ def render(
     from ipm.render.scene import frame_size
 
     frame_size(scale)
-    _check_writable_folder(out.parent if str(out.parent) else Path("."))
+    check_writable_folder(out.parent if str(out.parent) else Path("."))
     if contact_sheet:
         if params is not None or preset is not None:
             raise UserError("--contact-sheet renders the 12 presets; give no parameters")

@@ -101,6 +101,11 @@ from ipm.refine import commands as refine_commands  # noqa: E402
 
 app.command("fit")(refine_commands.fit)
 
+# benchmarks/
+from ipm.benchmarks import commands as bench_commands  # noqa: E402
+
+app.command("bench")(bench_commands.bench)
+
 
 def main() -> None:
     try:

@@ -64,6 +64,17 @@ class Ensemble:
                             "(an unfinished run? train the remaining nets)")
         return cls(nets, info, folder)
 
+    def sigma(self) -> dict[str, float]:
+        """The nets' error per continuous parameter as a Gaussian standard deviation: the
+        validation MAE each net stored with its best epoch, times sqrt(pi / 2) (for a
+        Gaussian error, MAE = sigma sqrt(2 / pi)).  The refinement's prior
+        (:func:`ipm.refine.search.search`)."""
+        out = {}
+        for info in self.info.values():
+            for k, mae in info.get("val", {}).get("mae", {}).items():
+                out[k] = float(mae) * float(np.sqrt(np.pi / 2))
+        return out
+
     @torch.no_grad()
     def outputs(self, image: np.ndarray, pixel_size_mm: float = PIXEL_SIZE_MM,
                 crops: int = 3) -> dict[str, np.ndarray]:

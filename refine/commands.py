@@ -37,6 +37,9 @@ def fit(
     time_limit: Annotated[float | None, typer.Option("--time", help="wall-time bound of the "
                                                      "search, seconds")] = None,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = "LN_BOBYQA",
+    prior: Annotated[bool, typer.Option("--prior/--no-prior", help="keep the search near the "
+                                        "nets' guess, weighted by the nets' validation error "
+                                        "(MAP); --no-prior: the image loss alone")] = True,
     invert: Annotated[bool, typer.Option("--invert", help="invert the photo first (backlit: "
                                          "dark yarn on a light background)")] = False,
     variant: Annotated[str | None, typer.Option(help="Mitsuba variant")] = None,
@@ -61,7 +64,8 @@ def fit(
     _prepare_folder(out)
     from ipm.nets.ensemble import Ensemble
 
-    neural = Ensemble.load(models).predict(image, pixel_size)
+    ensemble = Ensemble.load(models)
+    neural = ensemble.predict(image, pixel_size)
     renderer = Renderer(variant)
     columns = (TextColumn("{task.description}"), BarColumn(),
                TextColumn("{task.completed}/{task.total} renders, best loss {task.fields[best]}"),
@@ -70,7 +74,8 @@ def fit(
         task = bar.add_task("refining" if refine else "scoring", total=budget, best="-")
         result = fit(image, pixel_size, neural, renderer, options, refine,
                      on_eval=lambda i, loss, best: bar.update(task, completed=i,
-                                                             best=f"{best:.4f}"))
+                                                             best=f"{best:.4f}"),
+                     sigma=ensemble.sigma() if prior else None)
     for w in result.warnings:
         typer.echo(f"warning: {w}", err=True)
     shown, neural_img, refined_img = display_renders(renderer, image, pixel_size, result,

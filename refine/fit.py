@@ -115,9 +115,12 @@ def match_colour(objective: RenderObjective, params: YarnParams, photo: np.ndarr
 
 def fit(photo: np.ndarray, pixel_size_mm: float, neural: YarnParams, renderer,
         options: FitOptions = FitOptions(), refine: bool = True,
-        on_eval: Callable[[int, float, float], None] | None = None) -> FitResult:
+        on_eval: Callable[[int, float, float], None] | None = None,
+        sigma: dict[str, float] | None = None) -> FitResult:
     """Fit one photo ((H, W, 3) sRGB in [0, 1], ``pixel_size_mm`` per pixel at the yarn)
-    starting from the nets' parameters ``neural``."""
+    starting from the nets' parameters ``neural``; ``sigma``, the nets' error per parameter
+    (:meth:`ipm.nets.ensemble.Ensemble.sigma`), makes the search a MAP estimate around them
+    (:mod:`ipm.refine.search`)."""
     t0 = time.perf_counter()
     warnings = [w for w in (exposure_warning(photo),) if w]
     small = to_scene_pitch(photo, pixel_size_mm, options.scale)
@@ -133,7 +136,7 @@ def fit(photo: np.ndarray, pixel_size_mm: float, neural: YarnParams, renderer,
         loss = _mean_loss(objective, neural, options.search)
         return FitResult(neural, neural, loss, loss, False, warnings,
                          seconds=time.perf_counter() - t0)
-    result = search(objective, neural, options.search, on_eval)
+    result = search(objective, neural, options.search, on_eval, sigma)
     refined = match_colour(objective, result.best, small) if result.improved else neural
     if not result.improved:
         warnings.append("the search found no parameters with a lower loss than the nets' "

@@ -8,6 +8,15 @@ the best few distinct candidates of the search and the start are scored again on
 ``rescore_seeds`` (other fibers of the same parameters) and the winner is the one with the
 lowest mean loss over all seeds; if that is the start, the search could not improve on it
 and says so.
+
+With ``sigma`` (the nets' error per parameter, :meth:`ipm.nets.ensemble.Ensemble.sigma`) the
+search is a MAP estimate instead of a plain minimum: it minimises
+``L(theta) / s_L + prior_weight * 0.5 * sum(((theta - theta_nets) / sigma) ** 2)``, where
+``s_L`` is the seed noise of the loss at the start (the spread of ``L`` over the fiber
+seeds).  A loss difference smaller than its own seed noise then cannot pull a parameter
+further than about one ``sigma`` from the nets' guess, and the box shrinks to
+``box_sigmas * sigma`` around it.  Why: the image loss alone moved ``R_ply``, which the nets
+get to 2% of its range, to 5% (benchmarks/results/fit_accuracy.md, before the prior).
 """
 
 from __future__ import annotations
@@ -44,6 +53,8 @@ class SearchOptions:
     fiber_seed: int = 0
     rescore_seeds: tuple[int, ...] = (1, 2)
     rescore_top: int = 3
+    prior_weight: float = 1.0
+    box_sigmas: float = 3.0
 
     def __post_init__(self) -> None:
         bad = [p for p in self.params if p not in PAPER_INTERVALS or PAPER_INTERVALS[p].integer]
@@ -58,6 +69,9 @@ class SearchOptions:
                             f"for {len(self.params)} parameters, got {self.budget}")
         if not 0 < self.width <= 1:
             raise UserError(f"width must be in (0, 1], got {self.width}")
+        if self.prior_weight < 0 or self.box_sigmas <= 0:
+            raise UserError(f"prior_weight must be >= 0 and box_sigmas > 0, got "
+                            f"{self.prior_weight}, {self.box_sigmas}")
 
 
 @dataclass
@@ -72,13 +86,17 @@ class SearchResult:
     seconds: float = 0.0
 
 
-def search_box(start: YarnParams, names: tuple[str, ...], width: float
+def search_box(start: YarnParams, names: tuple[str, ...], width: float,
+               sigma: dict[str, float] | None = None, box_sigmas: float = 3.0
                ) -> tuple[np.ndarray, np.ndarray]:
-    """(lo, hi) of the search around ``start``, inside the prior's box."""
+    """(lo, hi) of the search around ``start``, inside the prior's box: ``width`` of each
+    range on either side, or ``box_sigmas * sigma[k]`` where that is narrower."""
     lo, hi = [], []
     for k in names:
         iv = PAPER_INTERVALS[k]
         half = width * (iv.hi - iv.lo)
+        if sigma is not None:
+            half = min(half, box_sigmas * sigma[k])
         v = getattr(start, k)
         lo.append(max(iv.lo, v - half))
         hi.append(min(iv.hi, v + half))
@@ -86,17 +104,38 @@ def search_box(start: YarnParams, names: tuple[str, ...], width: float
 
 
 def search(objective: Objective, start: YarnParams, opts: SearchOptions = SearchOptions(),
-           on_eval: Callable[[int, float, float], None] | None = None) -> SearchResult:
-    """Minimise ``objective`` over ``opts.params`` from ``start``.
+           on_eval: Callable[[int, float, float], None] | None = None,
+           sigma: dict[str, float] | None = None) -> SearchResult:
+    """Minimise ``objective`` over ``opts.params`` from ``start`` (with ``sigma``: the MAP
+    objective of the module doc; ``trace`` and the losses stay image losses).
 
     on_eval(evaluation, loss, best loss) is called after every evaluation (progress bars).
     """
     names = opts.params
-    lo, hi = search_box(start, names, opts.width)
+    if sigma is not None:
+        missing = [k for k in names if not sigma.get(k, 0) > 0]
+        if missing:
+            raise UserError(f"no positive prior sigma for {', '.join(missing)} (models "
+                            "without validation errors: refine with --no-prior)")
+    lo, hi = search_box(start, names, opts.width, sigma, opts.box_sigmas)
     span = np.where(hi > lo, hi - lo, 1.0)
     t0 = time.perf_counter()
     trace: list[float] = []
     seen: dict[tuple, tuple[float, YarnParams]] = {}
+    seeds = (opts.fiber_seed, *opts.rescore_seeds)
+    start_losses = [float(objective(start, s)) for s in seeds]
+    # seed noise of the loss at the start: the unit in which the prior term is added
+    noise = max(float(np.std(start_losses, ddof=1)) if len(seeds) > 1 else 0.0,
+                1e-3 * abs(float(np.mean(start_losses))), 1e-12)
+
+    def penalty(p: YarnParams) -> float:
+        if sigma is None:
+            return 0.0
+        z = [(getattr(p, k) - getattr(start, k)) / sigma[k] for k in names]
+        return opts.prior_weight * 0.5 * float(np.sum(np.square(z)))
+
+    def posterior(loss: float, p: YarnParams) -> float:
+        return loss if sigma is None else loss / noise + penalty(p)
 
     def to_params(u: np.ndarray) -> YarnParams:
         vals = lo + np.clip(u, 0, 1) * span
@@ -109,10 +148,10 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
         if not np.isfinite(loss):
             loss = 1e6
         trace.append(loss)
-        seen[tuple(np.round(u, 6))] = (loss, p)
+        seen[tuple(np.round(u, 6))] = (posterior(loss, p), loss, p)
         if on_eval:
             on_eval(len(trace), loss, min(trace))
-        return loss
+        return posterior(loss, p)
 
     u0 = np.clip((np.array([getattr(start, k) for k in names]) - lo) / span, 0, 1)
     opt = nlopt.opt(getattr(nlopt, opts.algorithm), len(names))
@@ -129,16 +168,11 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     except (nlopt.RoundoffLimited, nlopt.ForcedStop):
         pass  # the evaluations so far stand; the best of them is re-scored below
 
-    start_loss = float(objective(start, opts.fiber_seed))
-    candidates = sorted(seen.values(), key=lambda lp: lp[0])[: opts.rescore_top]
-    scored = [(_mean_loss(objective, start, start_loss, opts), start)]
-    scored += [(_mean_loss(objective, p, loss, opts), p) for loss, p in candidates]
-    best_loss, best = min(scored, key=lambda lp: lp[0])
+    candidates = sorted(seen.values(), key=lambda c: c[0])[: opts.rescore_top]
+    scored = [(float(np.mean(start_losses)), start)]
+    scored += [(float(np.mean([loss, *(objective(p, s) for s in opts.rescore_seeds)])), p)
+               for _, loss, p in candidates]
+    best_loss, best = min(scored, key=lambda lp: posterior(*lp))
     return SearchResult(start=start, best=best, start_loss=scored[0][0], best_loss=best_loss,
                         improved=best is not start, trace=trace, evaluations=len(trace),
                         seconds=time.perf_counter() - t0)
-
-
-def _mean_loss(objective: Objective, p: YarnParams, search_loss: float,
-               opts: SearchOptions) -> float:
-    return float(np.mean([search_loss, *(objective(p, s) for s in opts.rescore_seeds)]))

@@ -72,3 +72,41 @@ def test_all_listed_algorithms_exist():
 
     for a in ALGORITHMS:
         nlopt.opt(getattr(nlopt, a), 2)
+
+
+def test_prior_keeps_the_search_near_the_start_when_the_loss_is_noise():
+    """A loss whose pull toward TRUTH is small against its seed noise moves the MAP search
+    far less than the plain search; the box is box_sigmas * sigma around the start."""
+    start = TRUTH.replace(alpha=TRUTH.alpha - 1.5, alpha_ply=TRUTH.alpha_ply + 2.0,
+                          R_ply=TRUTH.R_ply + 0.1)
+    sigma = {"alpha": 0.5, "alpha_ply": 0.5, "R_ply": 0.02}
+
+    def weak(p, seed):
+        return 1e-3 * quadratic(p, 0) + 1e-3 * (seed % 3)
+
+    plain = search(weak, start, SearchOptions(params=NAMES, budget=60))
+    seen = []
+    prior = search(lambda p, s: seen.append(p) or weak(p, s), start,
+                   SearchOptions(params=NAMES, budget=60), sigma=sigma)
+    moved = {k: abs(getattr(prior.best, k) - getattr(start, k)) / sigma[k] for k in NAMES}
+    assert max(moved.values()) < 1.0
+    assert abs(plain.best.R_ply - TRUTH.R_ply) < abs(prior.best.R_ply - TRUTH.R_ply)
+    vals = np.array([[getattr(p, k) - getattr(start, k) for k in NAMES] for p in seen])
+    assert np.all(np.abs(vals) <= 3.0 * np.array([sigma[k] for k in NAMES]) + 1e-9)
+    assert prior.best_loss <= prior.start_loss
+
+
+def test_prior_follows_a_loss_that_is_sure():
+    """With a loss far above its seed noise the prior barely matters: the MAP search still
+    finds TRUTH when it lies inside the box."""
+    start = TRUTH.replace(alpha=TRUTH.alpha - 0.4, R_ply=TRUTH.R_ply + 0.02)
+    sigma = {"alpha": 0.5, "alpha_ply": 0.5, "R_ply": 0.02}
+    res = search(lambda p, s: 100 * quadratic(p, 0) + 1e-6 * (s % 3), start,
+                 SearchOptions(params=NAMES, budget=120), sigma=sigma)
+    assert res.improved
+    assert abs(res.best.alpha - TRUTH.alpha) < 0.1 and abs(res.best.R_ply - TRUTH.R_ply) < 0.005
+
+
+def test_prior_needs_every_sigma():
+    with pytest.raises(UserError, match="prior sigma for R_ply"):
+        search(quadratic, TRUTH, SearchOptions(params=NAMES), sigma={"alpha": 1, "alpha_ply": 1})

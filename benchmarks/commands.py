@@ -1,0 +1,73 @@
+"""``ipm bench``: the user's entry point to the benchmark report (:mod:`ipm.benchmarks.report`).
+Heavy imports happen inside the command."""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ipm.io import check_writable_folder
+
+
+def bench(
+    out: Annotated[Path, typer.Option("--out", "-o", help="report folder (index.md, "
+                                      "results.json, plots); a stopped run resumes")]
+    = Path("report"),
+    quick: Annotated[bool, typer.Option("--quick", help="a small run, about 10 minutes on "
+                                        "2 cores")] = False,
+    data: Annotated[Path | None, typer.Option(help="held-out set made with `ipm generate` "
+                                              "(default: generated into OUT/heldout)")] = None,
+    models: Annotated[Path | None, typer.Option(help="ensemble folder (default: the shipped "
+                                                "models)")] = None,
+    variants: Annotated[Path | None, typer.Option(help="folder with the runs reg, reg-ae, "
+                                                  "reg-latent, reg-ae-latent "
+                                                  "(benchmarks/train_variants.sh)")] = None,
+    count: Annotated[int | None, typer.Option(help="held-out photos (200; quick: 40)")] = None,
+    refine_count: Annotated[int | None, typer.Option(help="photos refined (30; quick: 3)")]
+    = None,
+    seed: Annotated[int, typer.Option(help="master seed of the held-out set")] = 20261122,
+) -> None:
+    """Benchmark report per parameter: accuracy of the nets and of the refinement beside the
+    paper, flyaway distributions, robustness to capture changes, and speed."""
+    from dataclasses import replace
+
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from ipm.benchmarks.report import BenchOptions, run
+
+    opts = BenchOptions.quick() if quick else BenchOptions()
+    opts = replace(opts, seed=seed, **({"count": count} if count else {}),
+                   **({"refine_count": refine_count} if refine_count is not None else {}))
+    opts = replace(opts, robust_count=min(opts.robust_count, opts.count),
+                   refine_count=min(opts.refine_count, opts.count))
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        from ipm.errors import UserError
+
+        raise UserError(f"cannot create report folder {out}: {e.strerror}") from None
+    check_writable_folder(out)
+    columns = (TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TimeElapsedColumn(), TimeRemainingColumn())
+    with Progress(*columns) as bar:
+        tasks: dict[str, int] = {}
+
+        def progress(stage: str, done: int, total: int) -> None:
+            if stage not in tasks:
+                tasks[stage] = bar.add_task(stage, total=total)
+            bar.update(tasks[stage], completed=done, total=total)
+
+        run(out, opts, data, models, variants, progress,
+            command="ipm " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
+    typer.echo(f"wrote {out}/index.md, {out}/results.json and the plots", err=True)

@@ -1,0 +1,86 @@
+"""`ipm bench`'s report machinery on a tiny held-out set with the shipped models."""
+
+import json
+import shutil
+import subprocess
+import sys
+from dataclasses import replace
+
+import pytest
+
+from ipm.benchmarks.report import FLYAWAY, RAW, REFINED, BenchOptions, perturb, run
+from ipm.errors import UserError
+
+TINY = BenchOptions(count=3, refine_count=1, robust_count=2, repeats=1, throughput_count=2,
+                    train_steps=1, budget=12)
+
+
+@pytest.fixture(scope="module")
+def heldout(tmp_path_factory):
+    from ipm.render.dataset import GenerateOptions, generate_dataset
+
+    folder = tmp_path_factory.mktemp("bench") / "heldout"
+    generate_dataset(folder, GenerateOptions(count=TINY.count, seed=TINY.seed, split="test"),
+                     workers=1)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def first(heldout, tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench") / "report"
+    return out, run(out, TINY, data=heldout)
+
+
+def test_report_files_and_a_row_per_parameter(first):
+    out, results = first
+    for name in ("index.md", "results.json", "pred_vs_true.png", "error_vs_value.png",
+                 "robustness.png", "loss_traces.png", "best_worst.png"):
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    index = (out / "index.md").read_text()
+    for k in RAW + FLYAWAY:
+        assert f"| {k} |" in index or f"| **{k}** |" in index, k
+    for k in REFINED:
+        assert sum(line.startswith(f"| {k} |") for line in index.splitlines()) == 1, k
+    saved = json.loads((out / "results.json").read_text())
+    assert set(saved["accuracy"]["ensemble"]["params"]) == set(RAW + FLYAWAY)
+    assert saved["refine"]["count"] == 1 and len(saved["robustness"]) > 5
+    assert saved["speed"]["render_s_scale_1_16spp"] > 0 and saved["speed"]["fit_s"] > 0
+    for stat in ("hair_count", "loop_count", "hair_length_mean", "loop_reach_mean"):
+        assert stat in saved["flyaway_distribution"]
+
+
+def test_same_seeds_same_numbers(first, heldout, tmp_path):
+    """A second run from scratch (timings aside) gives the same accuracy numbers."""
+    out, results = first
+    (tmp_path / "cache").mkdir()
+    shutil.copy(out / "cache" / "speed.json", tmp_path / "cache" / "speed.json")
+    again = run(tmp_path, TINY, data=heldout)
+    for key in ("accuracy", "baseline", "flyaway_distribution", "robustness"):
+        assert again[key] == results[key], key
+    assert again["refine"]["params"] == results["refine"]["params"]
+
+
+def test_resume_refuses_other_settings(first, heldout):
+    out, _ = first
+    with pytest.raises(UserError, match="other settings"):
+        run(out, replace(TINY, budget=13), data=heldout)
+
+
+def test_perturbations_change_the_image_and_keep_its_shape():
+    import numpy as np
+
+    img = np.random.default_rng(0).random((20, 40, 3)).astype(np.float32)
+    for kind, level in (("exposure", 1.0), ("noise", 0.03), ("blur", 1.5), ("rotation", 5.0)):
+        out = perturb(img, kind, level)
+        assert out.shape == img.shape and 0 <= out.min() and out.max() <= 1
+        assert np.abs(out - img).mean() > 1e-3, kind
+    assert perturb(img, "exposure", 1.0).mean() > img.mean()
+
+
+def test_cli_bad_output_folder_one_line(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    r = subprocess.run([sys.executable, "-m", "ipm", "bench", "--quick", "--out",
+                        blocker / "report"], capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.strip().startswith("error:"), r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and blocker.read_text() == "x"

@@ -9,8 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ipm.benchmarks.report import ENSEMBLE, RAW, REFINED, span
+from ipm.benchmarks.report import ENSEMBLE, RAW, span
 from ipm.params import PAPER_INTERVALS, YarnParams
+from ipm.refine.compare import REFINED
 
 NEURAL, REFINED_C = "#1f77b4", "#ff7f0e"
 
@@ -36,7 +37,8 @@ def _grid(n: int):
     plt = _pyplot()
     cols = 3
     rows = int(np.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.4 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.4 * rows), squeeze=False,
+                             layout="constrained")
     for ax in axes.flat[n:]:
         ax.set_visible(False)
     return fig, axes.flat
@@ -56,7 +58,7 @@ def predicted_vs_true(path: Path, preds: list[dict], truth: list[YarnParams],
         ax.set_title(k)
         ax.set_xlabel("true")
         ax.set_ylabel("predicted")
-    axes[0].legend(loc="upper left", fontsize=8)
+    axes[RAW.index("alpha")].legend(loc="upper left", fontsize=8)
     _save(fig, path)
 
 
@@ -74,7 +76,7 @@ def error_vs_value(path: Path, preds: list[dict], truth: list[YarnParams],
         ax.set_title(k)
         ax.set_xlabel("true value")
         ax.set_ylabel("|error|, % of range")
-    axes[0].legend(loc="upper left", fontsize=8)
+    axes[RAW.index("alpha")].legend(loc="upper left", fontsize=8)
     _save(fig, path)
 
 
@@ -96,7 +98,8 @@ def robustness(path: Path, rows: list[dict]) -> None:
     plt = _pyplot()
     kinds = [k for k in dict.fromkeys(r["kind"] for r in rows) if k != "clean"]
     clean = next(r["mean_pct"] for r in rows if r["kind"] == "clean")
-    fig, axes = plt.subplots(1, len(kinds), figsize=(3.2 * len(kinds), 3), squeeze=False)
+    fig, axes = plt.subplots(1, len(kinds), figsize=(3.2 * len(kinds), 3), squeeze=False,
+                             layout="constrained")
     for ax, kind in zip(axes[0], kinds, strict=True):
         pts = sorted([(0.0, clean)] + [(r["level"], r["mean_pct"]) for r in rows
                                       if r["kind"] == kind])
@@ -110,9 +113,7 @@ def best_and_worst(path: Path, refined: list[dict], truth: list[YarnParams], rec
                    count: int = 2) -> None:
     """Rows of photo | neural | refined for the refinements with the lowest and the highest
     mean error (% of range over the refined parameters)."""
-    from ipm.photo import read_image
-    from ipm.refine.fit import FitOptions, FitResult, compare_image, display_renders
-    from ipm.render.renderer import Renderer
+    from ipm.refine.compare import contact_sheet
 
     def err(i: int) -> float:
         return float(np.mean([abs(refined[i]["refined"][k] - getattr(truth[i], k)) / span(k)
@@ -120,22 +121,9 @@ def best_and_worst(path: Path, refined: list[dict], truth: list[YarnParams], rec
 
     order = sorted(range(len(refined)), key=err)
     picks = list(dict.fromkeys(order[:count] + order[-count:]))
-    renderer, options = Renderer(), FitOptions(display_scale=0.25, display_spp=16)
-    panels, labels = [], []
-    for i in picks:
-        r = refined[i]
-        neural, ref = YarnParams.from_dict(r["neural"]), YarnParams.from_dict(r["refined"])
-        res = FitResult(neural, ref, r["loss_neural"], r["loss_refined"], r["improved"])
-        shown = display_renders(renderer, read_image(records[i].image),
-                                records[i].pixel_size_mm, res, options)
-        tag = "best" if i in order[:count] else "worst"
-        panels += list(shown)
-        labels += [f"{tag}: photo {i} (error {100 * err(i):.1f}% of range)",
-                   f"neural  loss {r['loss_neural']:.4f}",
-                   f"refined  loss {r['loss_refined']:.4f}"]
-    from ipm.photo import write_png
-
-    write_png(path, compare_image(panels, labels))
+    tags = {i: f"{'best' if i in order[:count] else 'worst'} (error {100 * err(i):.1f}% of "
+               "range)" for i in picks}
+    contact_sheet(path, refined, records, picks, tags)
 
 
 def make_all(out: Path, results: dict, preds: dict[str, list], truth: list[YarnParams],

@@ -34,15 +34,17 @@ from ipm.benchmarks.machine import machine_info
 from ipm.errors import UserError
 from ipm.io import write_text
 from ipm.params import PAPER_INTERVALS, THICKNESS_CLASSES, YarnParams
+from ipm.refine.compare import summary as refine_summary
 
 #: The paper's validation errors of its parameter-specific networks (Table 2).
 PAPER = {"r_x": 0.0080, "r_y": 0.0066, "m": 12, "alpha": 0.0807, "alpha_ply": 0.0614,
          "R_ply": 0.00444}
 #: The paper's costs (Experiments): generator, Blender render, training on three GPUs.
-PAPER_SPEED = {"generate_s": "6-12", "render_s": "60-240", "train_h": "about 11 (3 GPUs)"}
+PAPER_SPEED = {"generate_s": "6-12", "render_s": "60-240",
+               "train_h_one_net": "2.5 (ResNet18, one parameter, 1000 epochs, 3 GPUs)",
+               "train_h_reg": "about 11 (full regression net, 3 GPUs)"}
 RAW = ("m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply")
 FLYAWAY = ("j", "j_xy", "j_z", "g", "p", "beta", "l_hair", "s", "l_loop", "d_mean", "d_std")
-REFINED = ("alpha", "alpha_ply", "R_ply", "r_x", "r_y")
 VARIANTS = ("reg", "reg-ae", "reg-latent", "reg-ae-latent")
 ENSEMBLE = "ensemble"
 #: (kind, level) perturbations of the robustness stage: exposure in stops (the paper's
@@ -109,11 +111,16 @@ def heldout_set(folder: Path, opts: BenchOptions, progress=None) -> Path:
 
 
 def load_records(folder: Path, count: int) -> list:
+    """The first ``count`` records by image name (a manifest lists them in the order the
+    workers finished), each with its fiber seed."""
     from ipm.nets.data import read_manifest
 
-    records = read_manifest(folder)
+    records = sorted(read_manifest(folder), key=lambda r: str(r.image))
     if len(records) < count:
         raise UserError(f"{folder} holds {len(records)} photos, the bench needs {count}")
+    if any(r.seed is None for r in records[:count]):
+        raise UserError(f"{folder}/manifest.jsonl has records without a fiber seed; the bench "
+                        "needs a dataset made with `ipm generate`")
     return records[:count]
 
 
@@ -128,6 +135,10 @@ def load_approaches(models: Path | None, variants: Path | None) -> dict:
 
     ens = Ensemble.load(models)
     out = {ENSEMBLE: ens}
+    if variants is not None and not any((Path(variants) / n / "raw" / "model.json").is_file()
+                                        for n in VARIANTS):
+        raise UserError(f"--variants {variants} holds none of {', '.join(VARIANTS)} (each "
+                        "as <name>/raw/model.json; benchmarks/train_variants.sh makes them)")
     for name in VARIANTS:
         folder = Path(variants or "-") / name / "raw"
         if variants is not None and (folder / "model.json").is_file():
@@ -217,56 +228,18 @@ def flyaway_distribution(preds: list[dict], truth: list[YarnParams], seeds: list
 
 # --- stage 3: refinement ----------------------------------------------------------------------
 
-def refine_one(record, neural: YarnParams, renderer, sigma: dict, budget: int) -> dict:
-    """``ipm fit --refine`` with its defaults on one held-out photo."""
-    from ipm.photo import read_image
-    from ipm.refine.fit import FitOptions, fit
-    from ipm.refine.search import SearchOptions
-
-    options = FitOptions(search=SearchOptions(budget=budget))
-    res = fit(read_image(record.image), record.pixel_size_mm, neural, renderer, options,
-              sigma=sigma)
-    return {"image": str(record.image), "neural": res.neural.to_dict(),
-            "refined": res.refined.to_dict(), "loss_neural": res.loss_neural,
-            "loss_refined": res.loss_refined, "improved": bool(res.improved),
-            "trace": res.search.trace if res.search else [], "seconds": res.seconds}
-
-
 def refine_all(folder: Path, records: list, neural: list[dict], sigma: dict, budget: int,
                progress=None) -> list[dict]:
-    """Refinements, one JSON line per photo appended as each finishes (resumable)."""
-    from ipm.render.renderer import Renderer
+    """``ipm fit --refine`` with its defaults on each record, resumable: the loop of
+    ``ipm compare`` (:func:`ipm.refine.compare.fit_all`) into ``folder/cache/refine.jsonl``."""
+    from ipm.refine.compare import fit_all
+    from ipm.refine.fit import FitOptions
+    from ipm.refine.search import SearchOptions
 
     path = folder / "cache" / "refine.jsonl"
     path.parent.mkdir(parents=True, exist_ok=True)
-    done = [json.loads(line) for line in path.read_text().splitlines()
-            if line.strip()] if path.is_file() else []
-    done = done[: len(records)]
-    renderer = None
-    with open(path, "a", encoding="utf-8") as f:
-        for i in range(len(done), len(records)):
-            renderer = renderer or Renderer()
-            row = refine_one(records[i], YarnParams.from_dict(neural[i]), renderer, sigma,
-                             budget)
-            f.write(json.dumps(row) + "\n")
-            f.flush()
-            done.append(row)
-            if progress:
-                progress(i + 1, len(records))
-    return done
-
-
-def refine_summary(rows: list[dict], truth: list[YarnParams]) -> dict:
-    out: dict = {"count": len(rows), "improved": int(sum(r["improved"] for r in rows)),
-                 "fit_seconds_median": float(np.median([r["seconds"] for r in rows]))
-                 if rows else None, "params": {}}
-    for k in REFINED:
-        a = np.abs([r["neural"][k] - getattr(t, k) for r, t in zip(rows, truth, strict=False)])
-        b = np.abs([r["refined"][k] - getattr(t, k) for r, t in zip(rows, truth, strict=False)])
-        out["params"][k] = {"neural": float(a.mean()), "refined": float(b.mean()),
-                            "change_pct": float(100 * (b.mean() / a.mean() - 1))
-                            if a.mean() > 0 else 0.0}
-    return out
+    return fit_all(path, records, lambda i, _: YarnParams.from_dict(neural[i]),
+                   FitOptions(search=SearchOptions(budget=budget)), sigma, progress=progress)
 
 
 # --- stage 4: robustness ----------------------------------------------------------------------
@@ -363,17 +336,15 @@ def run(out: Path, opts: BenchOptions, data: Path | None = None, models: Path | 
     if old.is_file() and json.loads(old.read_text()) != settings:
         raise UserError(f"{out} holds a run with other settings ({old}); choose another "
                         "--out or delete it")
-    _cache(out, "settings", lambda: settings)
+    approaches = load_approaches(models, variants)  # before anything is written
+    ens = approaches[ENSEMBLE]
     folder = data or heldout_set(out / "heldout", opts, stage("held-out set"))
     records = load_records(folder, opts.count)
     truth = [r.params for r in records]
-    approaches = load_approaches(models, variants)
-    ens = approaches[ENSEMBLE]
+    _cache(out, "settings", lambda: settings)
     pred = _cache(out, "predictions", lambda: predict_all(approaches, records,
                                                           stage("predict")))
     base = mean_prediction(ens)
-    fiber_seeds = [int(json.loads(line)["seed"]) for line in
-                   (Path(folder) / "manifest.jsonl").read_text().splitlines()[: opts.count]]
     results: dict = {"settings": settings, "machine": machine_info("mitsuba", "drjit", "torch",
                                                                   "nlopt", "kornia"),
                      "heldout": str(folder), "paper": PAPER, "paper_speed": PAPER_SPEED}
@@ -381,11 +352,11 @@ def run(out: Path, opts: BenchOptions, data: Path | None = None, models: Path | 
                            pred["predictions"].items()}
     results["baseline"] = baseline_accuracy(base, truth)
     results["flyaway_distribution"] = _cache(out, "flyaway", lambda: flyaway_distribution(
-        pred["predictions"][ENSEMBLE], truth, fiber_seeds, base))
+        pred["predictions"][ENSEMBLE], truth, [r.seed for r in records], base))
     rows = refine_all(out, records[: opts.refine_count],
                       pred["predictions"][ENSEMBLE][: opts.refine_count], ens.sigma(),
                       opts.budget, stage("refine"))
-    results["refine"] = refine_summary(rows, truth)
+    results["refine"] = refine_summary(rows, truth[: len(rows)])
     results["robustness"] = _cache(out, "robustness", lambda: robustness(
         ens, records[: opts.robust_count], stage("robustness")))
     results["speed"] = _cache(out, "speed", lambda: speed(
@@ -402,6 +373,14 @@ def _f(x: float | None, digits: int = 4) -> str:
     return "-" if x is None else f"{x:.{digits}g}"
 
 
+def heldout_sentence(settings: dict) -> str:
+    if settings["data"]:
+        return f"Held-out set: the first {settings['count']} photos of `{settings['data']}`."
+    return (f"Held-out set: {settings['count']} renders of `ipm generate` at seed "
+            f"{settings['seed']} (split `test`, photometric variation on; the shipped nets "
+            "were trained on seeds 0 and 1).")
+
+
 def markdown(results: dict, figures: dict[str, str], command: str) -> str:
     acc, base, ref = results["accuracy"], results["baseline"], results["refine"]
     names = list(acc)
@@ -410,14 +389,12 @@ def markdown(results: dict, figures: dict[str, str], command: str) -> str:
              f"(commit {m['commit']}; {m['cpu']}, {m['cores']} cores; python {m['python']}, "
              f"mitsuba {m['mitsuba']}, drjit {m['drjit']}, torch {m['torch']}, "
              f"nlopt {m['nlopt']}, kornia {m['kornia']}).", "",
-             f"Held-out set: {results['settings']['count']} renders of `ipm generate` at seed "
-             f"{results['settings']['seed']} (split `test`, photometric variation on; the "
-             "shipped nets were trained on seeds 0 and 1).  Method: `benchmarks/README.md`.",
+             heldout_sentence(results["settings"]) + "  Method: `benchmarks/README.md`.",
              "", "## Accuracy per parameter", "",
              "MAE in raw units (mm, radians, counts) and, below it, in % of the parameter's "
-             "interval.  `baseline`: predict the mean training label.  `refined`: the "
-             f"ensemble + `ipm fit --refine` on the first {ref['count']} photos (its own "
-             "columns, since it ran on fewer).", ""]
+             "interval.  `baseline`: predict the mean training label (the ensemble's nets "
+             "store it), for `n` and the thickness the majority class of the held-out set.  "
+             "The refinement ran on fewer photos and has its own table below.", ""]
     head = ["parameter", *names, "baseline", "paper (val.)"]
     lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for k in RAW + FLYAWAY:
@@ -433,12 +410,16 @@ def markdown(results: dict, figures: dict[str, str], command: str) -> str:
         f"{100 * acc[n]['thickness_accuracy']:.1f}%" for n in names)
         + f" | {100 * base['thickness_majority']:.1f}% (majority) | |")
     lines += ["", "The paper's numbers are the validation losses of full-width ResNets "
-              "trained at 1200x584 px (0.01 mm per pixel) for 1000 epochs on 4000 images "
-              "with three GPUs; ours are held-out MAE of ResNet18 at a quarter of its width "
-              "on 300x146 px crops (0.04 mm per pixel), 8 epochs on 2000 images on two CPU "
-              "cores.  The paper does not give the loss's units; read as L1 on parameters "
-              "normalised to [0, 1], they compare with our % column divided by 100 (e.g. its "
-              "alpha 0.0807 with our alpha %).", "",
+              "trained at 1200x584 px (0.01 mm per pixel) for 850-1000 epochs on 4000 images "
+              "with three GPUs; "
+              + ("ours are held-out MAE of the shipped models (ResNet18 at a quarter of its "
+                 "width on 300x146 px crops at 0.04 mm per pixel, 8 epochs on 2000 images on "
+                 "two CPU cores; `nets/models/README.md`)" if results["settings"]["models"]
+                 == "shipped" else f"ours are held-out MAE of the models in "
+                 f"`{results['settings']['models']}`")
+              + ".  The paper does not state the units of its table (its `m` of 12 reads as "
+              "a raw fiber count; the others could be raw mm or normalised), so its values "
+              "stand as printed.", "",
               "## Ensemble + refinement", "",
               f"{ref['count']} photos; the search kept a candidate other than the nets' guess "
               f"for {ref['improved']}; fit time per photo: median "
@@ -467,7 +448,11 @@ def markdown(results: dict, figures: dict[str, str], command: str) -> str:
     lines += ["", "Units: exposure in stops, noise as the std of added Gaussian noise in "
               "sRGB, blur as a Gaussian std in pixels, rotation in degrees.", ""]
     s, ps = results["speed"], results["paper_speed"]
-    lines += ["## Speed", "", "Medians over repeats on this machine.", "",
+    lines += ["## Speed", "", f"Medians over {results['settings']['repeats']} repeats on this "
+              "machine, except the dataset throughput (one run of "
+              f"{results['settings']['throughput_count']} images) and the training epochs "
+              f"(extrapolated from {results['settings']['train_steps']} timed steps to 2000 "
+              "images).", "",
               "| what | ipm | paper |", "|---|---|---|",
               f"| fiber generation per yarn | {_f(s['generate_s'], 3)} s | "
               f"{ps['generate_s']} s |",
@@ -477,11 +462,12 @@ def markdown(results: dict, figures: dict[str, str], command: str) -> str:
               f"{ps['render_s']} s |",
               f"| dataset images per hour, all cores | "
               f"{_f(s['dataset_images_per_hour'], 4)} | |",
-              f"| predict per photo (9 nets) | {_f(s['predict_s'], 3)} s | |",
+              f"| predict per photo (whole ensemble) | {_f(s['predict_s'], 3)} s | |",
               f"| fit per photo (`--refine`) | {_f(s['fit_s'], 3)} s | |",
               f"| training epoch, one ensemble net (2000 images) | "
-              f"{_f(s['train_epoch_s_ensemble_net'], 3)} s | {ps['train_h']} h in all |",
-              f"| training epoch, Reg^ae net | {_f(s['train_epoch_s_reg_ae_net'], 3)} s | |",
+              f"{_f(s['train_epoch_s_ensemble_net'], 3)} s | {ps['train_h_one_net']} h |",
+              f"| training epoch, Reg^ae net | {_f(s['train_epoch_s_reg_ae_net'], 3)} s | "
+              f"{ps['train_h_reg']} h |",
               "", "## Figures", ""]
     lines += [f"![{title}]({path})" for title, path in figures.items()]
     return "\n".join(lines) + "\n"

@@ -9,11 +9,13 @@
 #   bash benchmarks/train_variants.sh [DATA=data] [RUNS=runs] [REAL=../shared/real-yarns]
 set -euo pipefail
 DATA="${1:-data}"; RUNS="${2:-runs}"; REAL="${3:-../shared/real-yarns}"
-[ -d "$DATA/train" ] || ipm generate --out "$DATA/train" --count 2000 --seed 0 --scale 0.25 --spp 8
-[ -d "$DATA/val" ] || ipm generate --out "$DATA/val" --count 200 --seed 1 --split val --scale 0.25 --spp 8
+# ipm generate resumes: a finished set is left as it is, a partial one is completed
+mkdir -p "$DATA"
+ipm generate --out "$DATA/train" --count 2000 --seed 0 --scale 0.25 --spp 8
+ipm generate --out "$DATA/val" --count 200 --seed 1 --split val --scale 0.25 --spp 8
 common=(--nets raw --epochs 8 --data "$DATA/train" --val "$DATA/val")
 real=(--real "$REAL" --real-pixel-size 0.0085 --real-invert)
 run() { OMP_NUM_THREADS=1 ipm train --preset "$1" --out "$RUNS/$1" "${common[@]}" "${@:2}"; }
-(run reg && run reg-latent "${real[@]}") &
-(run reg-ae "${real[@]}" && run reg-ae-latent "${real[@]}") &
-wait
+(run reg && run reg-latent "${real[@]}") & first=$!
+(run reg-ae "${real[@]}" && run reg-ae-latent "${real[@]}") & second=$!
+wait "$first"; wait "$second"  # a failed training fails the script

@@ -100,6 +100,7 @@ app.command("saliency")(nets_commands.saliency)
 from ipm.refine import commands as refine_commands  # noqa: E402
 
 app.command("fit")(refine_commands.fit)
+app.command("compare")(refine_commands.compare)
 
 # benchmarks/
 from ipm.benchmarks import commands as bench_commands  # noqa: E402

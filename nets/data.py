@@ -49,9 +49,12 @@ def to_input(img: np.ndarray) -> torch.Tensor:
 
 @dataclass(frozen=True)
 class Record:
+    """One labelled sample; ``seed`` is its fiber seed (None where a manifest has none)."""
+
     image: Path
     params: YarnParams
     pixel_size_mm: float
+    seed: int | None = None
 
 
 def read_manifest(folder: Path) -> list[Record]:
@@ -66,8 +69,10 @@ def read_manifest(folder: Path) -> list[Record]:
             continue
         try:
             d = json.loads(line)
+            seed = d.get("seed")
             records.append(Record(Path(folder) / d["image"], YarnParams.from_dict(d["params"]),
-                                  float(d.get("pixel_size_mm", PIXEL_SIZE_MM))))
+                                  float(d.get("pixel_size_mm", PIXEL_SIZE_MM)),
+                                  None if seed is None else int(seed)))
         except (json.JSONDecodeError, KeyError, TypeError, ValueError) as e:
             raise UserError(f"{path}:{i}: bad record ({e})") from None
     if not records:

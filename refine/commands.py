@@ -91,3 +91,61 @@ def fit(
     write_text(out / "params.json", json.dumps(result.to_dict(options, pixel_size), indent=2))
     typer.echo(f"loss neural {result.loss_neural:.4f} -> refined {result.loss_refined:.4f} "
                f"({result.seconds:.0f} s); wrote {out}/params.json, compare.png", err=True)
+
+
+def compare(
+    photos: Annotated[Path, typer.Argument(help="folder of photos, or a dataset made with "
+                                           "`ipm generate` (then errors against its labels "
+                                           "are reported too)")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="report folder (index.md, "
+                                      "results.csv, compare.png); a stopped run resumes")]
+    = Path("compare"),
+    pixel_size: Annotated[float, typer.Option(help="mm per photo pixel at the yarn, for a "
+                                              "folder of photos (a dataset records its own)")]
+    = PIXEL_SIZE_MM,
+    count: Annotated[int | None, typer.Option(min=1, help="fit only the first N photos (by "
+                                              "name)")] = None,
+    models: Annotated[Path | None, typer.Option(help="trained ensemble folder (default: the "
+                                                "models shipped with ipm)")] = None,
+    budget: Annotated[int, typer.Option(help="objective evaluations of each search")] = 80,
+    algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = "LN_BOBYQA",
+    prior: Annotated[bool, typer.Option("--prior/--no-prior", help="MAP search around the "
+                                        "nets' guess (see ipm fit)")] = True,
+    invert: Annotated[bool, typer.Option("--invert", help="invert the photos first (backlit: "
+                                         "dark yarn on a light background)")] = False,
+) -> None:
+    """Neural-only vs refined over many photos: `ipm fit --refine` on each, then a table
+    (CSV and Markdown) and a figure of photo | neural | refined."""
+    import shlex
+    import sys
+
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+
+    from ipm.io import write_text
+    from ipm.nets.ensemble import Ensemble
+    from ipm.refine import compare as cmp
+    from ipm.refine.fit import FitOptions
+    from ipm.refine.search import SearchOptions
+
+    options = FitOptions(search=SearchOptions(algorithm=algorithm, budget=budget))
+    listed = cmp.photos_in(photos, pixel_size, count)
+    ensemble = Ensemble.load(models)
+    _prepare_folder(out)
+    settings = {"photos": str(photos), "count": len(listed), "pixel_size_mm": pixel_size,
+                "models": str(models) if models else "shipped", "budget": budget,
+                "algorithm": algorithm, "prior": prior, "invert": invert}
+    saved = out / "settings.json"
+    if saved.is_file() and json.loads(saved.read_text(encoding="utf-8")) != settings:
+        raise UserError(f"{out} holds a comparison with other settings ({saved}); choose "
+                        "another --out or delete it")
+    write_text(saved, json.dumps(settings, indent=2) + "\n")
+    with Progress(BarColumn(), MofNCompleteColumn(), TimeRemainingColumn()) as bar:
+        task = bar.add_task("fits", total=len(listed))
+        s = cmp.compare(photos, out, ensemble, options, prior, pixel_size, count, invert,
+                        progress=lambda done, total: bar.update(task, completed=done),
+                        command="ipm " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
+    for k, v in s["params"].items():
+        typer.echo(f"{k:10s} MAE neural {v['neural']:.4g} -> refined {v['refined']:.4g} "
+                   f"({v['change_pct']:+.0f}%)", err=True)
+    typer.echo(f"{s['improved']}/{s['count']} photos improved; wrote {out}/index.md, "
+               "results.csv, compare.png", err=True)

@@ -20,7 +20,8 @@ from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb, srgb_to_linear, to_scene_pitch
 from ipm.refine.objective import RenderObjective, centre_crop, to_tensor
 from ipm.refine.search import SearchOptions, SearchResult, search
-from ipm.refine.stats import centre_rows, yarn_centre
+from ipm.refine.stats import centre_rows, yarn_centre, yarn_tilt
+from ipm.render.photometric import Photometric
 
 #: A photo with more than this fraction of pixels at either end of the range is strongly
 #: under- or over-exposed, where the paper's nets do not hold.
@@ -60,6 +61,8 @@ class FitResult:
     warnings: list[str] = field(default_factory=list)
     search: SearchResult | None = None
     seconds: float = 0.0
+    tilt_deg: float = 0.0
+    sigma: dict[str, float] | None = None
 
     def to_dict(self, options: FitOptions, pixel_size_mm: float) -> dict:
         return {
@@ -68,7 +71,8 @@ class FitResult:
             "improved": self.improved, "warnings": self.warnings,
             "evaluations": self.search.evaluations if self.search else 0,
             "seconds": round(self.seconds, 2),
-            "settings": {**asdict(options), "pixel_size_mm": pixel_size_mm},
+            "settings": {**asdict(options), "pixel_size_mm": pixel_size_mm,
+                         "tilt_deg": round(self.tilt_deg, 3), "prior_sigma": self.sigma},
         }
 
 
@@ -124,9 +128,11 @@ def fit(photo: np.ndarray, pixel_size_mm: float, neural: YarnParams, renderer,
     t0 = time.perf_counter()
     warnings = [w for w in (exposure_warning(photo),) if w]
     small = to_scene_pitch(photo, pixel_size_mm, options.scale)
+    seen = core_contrast(small) >= MIN_CORE_CONTRAST
+    tilt = photo_tilt(small) if seen else 0.0
     objective = RenderObjective(renderer, small, options.scale, options.spp,
-                                seeds_per_eval=options.seeds_per_eval)
-    if core_contrast(small) < MIN_CORE_CONTRAST:
+                                seeds_per_eval=options.seeds_per_eval, tilt_deg=tilt)
+    if not seen:
         warnings.append("no yarn found in the photo (its core does not stand out from the "
                         "background); the search is skipped and the neural result kept")
         refine = False
@@ -135,14 +141,23 @@ def fit(photo: np.ndarray, pixel_size_mm: float, neural: YarnParams, renderer,
     if not refine:
         loss = _mean_loss(objective, neural, options.search)
         return FitResult(neural, neural, loss, loss, False, warnings,
-                         seconds=time.perf_counter() - t0)
+                         seconds=time.perf_counter() - t0, tilt_deg=tilt, sigma=sigma)
     result = search(objective, neural, options.search, on_eval, sigma)
     refined = match_colour(objective, result.best, small) if result.improved else neural
     if not result.improved:
         warnings.append("the search found no parameters with a lower loss than the nets' "
-                        "over the re-scoring seeds; the neural result is kept")
+                        "over the re-scoring seeds" + (" (loss plus the nets' prior)"
+                                                       if sigma else "")
+                        + "; the neural result is kept")
     return FitResult(neural, refined, result.start_loss, result.best_loss, result.improved,
-                     warnings, result, time.perf_counter() - t0)
+                     warnings, result, time.perf_counter() - t0, tilt, sigma)
+
+
+def photo_tilt(image_srgb: np.ndarray) -> float:
+    """The yarn's tilt in the photo, degrees counter-clockwise (:func:`yarn_tilt`).  The
+    renders of the search are tilted the same way, so that a tilted photo's wider core
+    profile is not mistaken for a thicker yarn."""
+    return float(yarn_tilt(to_tensor(image_srgb).mean(dim=1, keepdim=True))[0])
 
 
 def _mean_loss(objective: RenderObjective, p: YarnParams, opts: SearchOptions) -> float:
@@ -154,8 +169,10 @@ def display_renders(renderer, photo: np.ndarray, pixel_size_mm: float, result: F
     """(photo, neural render, refined render) as sRGB at ``display_scale``, cut to their
     common extent."""
     shown = to_scene_pitch(photo, pixel_size_mm, options.display_scale)
+    capture = Photometric(rotation_deg=result.tilt_deg)
     renders = [linear_to_srgb(renderer.render(p, options.search.fiber_seed,
-                                              options.display_scale, options.display_spp))
+                                              options.display_scale, options.display_spp,
+                                              photometric=capture))
                for p in (result.neural, result.refined)]
     h = min(shown.shape[0], renders[0].shape[0])
     w = min(shown.shape[1], renders[0].shape[1])

@@ -14,6 +14,7 @@ import torch
 from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb
 from ipm.refine.stats import stat_distance, yarn_statistics
+from ipm.render.photometric import Photometric
 
 #: Group weights ~ 1 / (each group's seed noise at the truth), measured on three sampled
 #: yarns with ``python -m ipm.benchmarks.identifiability`` (docs/identifiability.md).
@@ -43,7 +44,7 @@ class RenderObjective:
 
     def __init__(self, renderer, photo: np.ndarray, scale: float, spp: int,
                  render_seed: int = 0, weights: dict[str, float] | None = None,
-                 seeds_per_eval: int = 1) -> None:
+                 seeds_per_eval: int = 1, tilt_deg: float = 0.0) -> None:
         from ipm.render.scene import frame_size
 
         w, h = frame_size(scale)
@@ -51,12 +52,14 @@ class RenderObjective:
         self.renderer, self.scale, self.spp, self.render_seed = renderer, scale, spp, render_seed
         self.weights = DEFAULT_WEIGHTS if weights is None else weights
         self.seeds_per_eval = seeds_per_eval
+        self.capture = Photometric(rotation_deg=tilt_deg)
         self.photo_stats = yarn_statistics(to_tensor(centre_crop(photo, *self.size)))
         self.evaluations = 0
 
     def render(self, params: YarnParams, seed: int) -> np.ndarray:
         """The sRGB render (H, W, 3) the objective compares, cut to the photo's extent."""
-        img = self.renderer.render(params, seed, self.scale, self.spp, self.render_seed)
+        img = self.renderer.render(params, seed, self.scale, self.spp, self.render_seed,
+                                   self.capture)
         self.evaluations += 1
         return centre_crop(linear_to_srgb(img), *self.size)
 
@@ -64,8 +67,14 @@ class RenderObjective:
         return float(stat_distance(yarn_statistics(to_tensor(img)), self.photo_stats,
                                    self.weights)[0])
 
-    def __call__(self, params: YarnParams, seed: int) -> float:
+    def group_distances(self, params: YarnParams, seed: int) -> dict[str, float]:
+        """Each statistics group's mean squared difference to the photo's (unweighted), of
+        the statistics averaged over ``seeds_per_eval`` fiber seeds."""
         stats = [yarn_statistics(to_tensor(self.render(params, seed + 1000 * k)))
                  for k in range(self.seeds_per_eval)]
-        mean = {g: torch.stack([s[g] for s in stats]).mean(dim=0) for g in stats[0]}
-        return float(stat_distance(mean, self.photo_stats, self.weights)[0])
+        return {g: float((torch.stack([s[g] for s in stats]).mean(dim=0)
+                          - self.photo_stats[g]).square().mean()) for g in stats[0]}
+
+    def __call__(self, params: YarnParams, seed: int) -> float:
+        d = self.group_distances(params, seed)
+        return float(sum(self.weights.get(g, 1.0) * v for g, v in d.items()))

@@ -13,8 +13,8 @@ With ``sigma`` (the nets' error per parameter, :meth:`ipm.nets.ensemble.Ensemble
 search is a MAP estimate instead of a plain minimum: it minimises
 ``L(theta) / s_L + prior_weight * 0.5 * sum(((theta - theta_nets) / sigma) ** 2)``, where
 ``s_L`` is the seed noise of the loss at the start (the spread of ``L`` over the fiber
-seeds).  A loss difference smaller than its own seed noise then cannot pull a parameter
-further than about one ``sigma`` from the nets' guess, and the box shrinks to
+seeds).  A loss difference of one unit of its own seed noise then cannot pull a parameter
+further than ``sqrt(2) sigma`` from the nets' guess, and the box shrinks to
 ``box_sigmas * sigma`` around it.  Why: the image loss alone moved ``R_ply``, which the nets
 get to 2% of its range, to 5% (benchmarks/results/fit_accuracy.md, before the prior).
 """
@@ -86,6 +86,12 @@ class SearchResult:
     seconds: float = 0.0
 
 
+def _finite(loss: float) -> float:
+    """A loss NLopt can order: a render that failed to give statistics scores worst."""
+    loss = float(loss)
+    return loss if np.isfinite(loss) else 1e6
+
+
 def search_box(start: YarnParams, names: tuple[str, ...], width: float,
                sigma: dict[str, float] | None = None, box_sigmas: float = 3.0
                ) -> tuple[np.ndarray, np.ndarray]:
@@ -123,7 +129,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     trace: list[float] = []
     seen: dict[tuple, tuple[float, YarnParams]] = {}
     seeds = (opts.fiber_seed, *opts.rescore_seeds)
-    start_losses = [float(objective(start, s)) for s in seeds]
+    start_losses = [_finite(objective(start, s)) for s in seeds]
     # seed noise of the loss at the start: the unit in which the prior term is added
     noise = max(float(np.std(start_losses, ddof=1)) if len(seeds) > 1 else 0.0,
                 1e-3 * abs(float(np.mean(start_losses))), 1e-12)
@@ -144,9 +150,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
 
     def f(u: np.ndarray, grad: np.ndarray) -> float:
         p = to_params(u)
-        loss = float(objective(p, opts.fiber_seed))
-        if not np.isfinite(loss):
-            loss = 1e6
+        loss = _finite(objective(p, opts.fiber_seed))
         trace.append(loss)
         seen[tuple(np.round(u, 6))] = (posterior(loss, p), loss, p)
         if on_eval:
@@ -170,7 +174,8 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
 
     candidates = sorted(seen.values(), key=lambda c: c[0])[: opts.rescore_top]
     scored = [(float(np.mean(start_losses)), start)]
-    scored += [(float(np.mean([loss, *(objective(p, s) for s in opts.rescore_seeds)])), p)
+    scored += [(float(np.mean([loss, *(_finite(objective(p, s))
+                                        for s in opts.rescore_seeds)])), p)
                for _, loss, p in candidates]
     best_loss, best = min(scored, key=lambda lp: posterior(*lp))
     return SearchResult(start=start, best=best, start_loss=scored[0][0], best_loss=best_loss,

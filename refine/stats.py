@@ -27,7 +27,7 @@ import kornia
 import torch
 from torch import Tensor, nn
 
-GROUPS = ("core", "flyaways", "orientation", "spectrum", "histogram")
+GROUPS = ("core", "flyaways", "orientation", "spectrum", "period", "histogram")
 
 
 def _check_image(x: Tensor, name: str) -> None:
@@ -50,6 +50,22 @@ def yarn_centre(gray: Tensor) -> tuple[Tensor, Tensor]:
     weight = torch.clamp(weight - 0.5 * weight.amax(dim=-1, keepdim=True), min=0)
     rows = torch.arange(h, dtype=gray.dtype, device=gray.device)
     return bg, (weight * rows).sum(-1) / weight.sum(-1).clamp_min(1e-8)
+
+
+def yarn_tilt(gray: Tensor, blocks: int = 10) -> Tensor:
+    """Tilt (B,) of the yarn's axis in a ``(B, 1, H, W)`` image, in degrees, counter-clockwise
+    (the scene's y points up, rows point down): :func:`yarn_centre` in ``blocks`` vertical
+    strips, and the Theil-Sen slope (median of the pairwise slopes, so a strip whose centre a
+    flyaway or the frame's edge moves does not tilt the line) through them."""
+    b, _, h, w = gray.shape
+    bw = w // blocks
+    strips = gray[..., : bw * blocks].reshape(b, 1, h, blocks, bw).permute(0, 3, 1, 2, 4)
+    _, centres = yarn_centre(strips.reshape(b * blocks, 1, h, bw))
+    centres = centres.view(b, blocks)
+    x = (torch.arange(blocks, dtype=gray.dtype, device=gray.device) + 0.5) * bw
+    i, j = torch.triu_indices(blocks, blocks, offset=1)
+    slopes = (centres[:, j] - centres[:, i]) / (x[j] - x[i])
+    return -torch.rad2deg(torch.atan(slopes.median(dim=1).values))
 
 
 def centre_rows(image: Tensor, centre: Tensor) -> Tensor:
@@ -124,7 +140,20 @@ def _level_stats(dev: Tensor, strips: int, bands: int) -> dict[str, Tensor]:
     logp = torch.log(power.flatten(1) @ bins.T + 1e-10)
     spectrum = 0.25 * (logp - logp.mean(dim=-1, keepdim=True))
     return {"core": 4 * median, "flyaways": 8 * fly, "orientation": orientation,
-            "spectrum": spectrum}
+            "spectrum": spectrum, "period": _axial_autocorrelation(band)}
+
+
+def _axial_autocorrelation(band: Tensor) -> Tensor:
+    """(B, W // 3) mean autocorrelation along the axis of the rows of ``band`` (B, h, W), at
+    lags 1 .. W // 3, normalised by lag 0: the stripes of the ply twist repeat every
+    ``alpha_ply / n`` and peak there, wherever each fiber lands.  Zero-padded FFT, so that
+    the lags do not wrap around."""
+    w = band.shape[-1]
+    x = band - band.mean(dim=-1, keepdim=True)
+    power = torch.fft.rfft(x, n=2 * w).abs().square()
+    acf = torch.fft.irfft(power, n=2 * w)[..., : w // 3 + 1].mean(dim=1)
+    acf = acf / torch.arange(w, w - acf.shape[-1], -1, dtype=x.dtype, device=x.device)
+    return acf[:, 1:] / acf[:, :1].clamp_min(1e-12)
 
 
 def yarn_statistics(image: Tensor, levels: int = 2, strips: int = 6, bands: int = 6

@@ -8,8 +8,9 @@ from dataclasses import replace
 
 import pytest
 
-from ipm.benchmarks.report import FLYAWAY, RAW, REFINED, BenchOptions, perturb, run
+from ipm.benchmarks.report import FLYAWAY, RAW, BenchOptions, perturb, run
 from ipm.errors import UserError
+from ipm.refine.compare import REFINED
 
 TINY = BenchOptions(count=3, refine_count=1, robust_count=2, repeats=1, throughput_count=2,
                     train_steps=1, budget=12)
@@ -84,3 +85,35 @@ def test_cli_bad_output_folder_one_line(tmp_path):
                         blocker / "report"], capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.strip().startswith("error:"), r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and blocker.read_text() == "x"
+
+
+def test_refinement_resumes_past_a_torn_line(first, heldout, tmp_path):
+    """A kill while a refinement row was being written leaves a torn line: the rerun keeps
+    the whole rows before it (no refit) and rewrites the cache without the torn one."""
+    from ipm.benchmarks.report import load_records, refine_all
+
+    out, _ = first
+    row = (out / "cache" / "refine.jsonl").read_text().splitlines()[0]
+    (tmp_path / "cache").mkdir()
+    (tmp_path / "cache" / "refine.jsonl").write_text(row + "\n" + row[: len(row) // 2])
+    records = load_records(heldout, 1)
+    rows = refine_all(tmp_path, records, [None], {}, TINY.budget)  # [None]: a refit fails
+    assert rows == [json.loads(row)]
+    assert (tmp_path / "cache" / "refine.jsonl").read_text() == row + "\n"
+
+
+def test_no_refinement_is_a_valid_report(heldout, tmp_path):
+    from ipm.benchmarks.report import refine_summary
+
+    assert refine_summary([], [])["params"] == {}
+    with pytest.raises(UserError, match="holds none of"):
+        run(tmp_path / "r", TINY, data=heldout, variants=tmp_path)
+    assert not (tmp_path / "r" / "cache" / "settings.json").exists()
+
+
+def test_records_are_sorted_and_carry_their_fiber_seed(heldout):
+    from ipm.benchmarks.report import load_records
+
+    records = load_records(heldout, TINY.count)
+    assert [r.image.name for r in records] == sorted(r.image.name for r in records)
+    assert all(isinstance(r.seed, int) for r in records)

@@ -226,3 +226,14 @@ def test_learning_rate_schedule(tmp_path):
     assert all(np.diff(rates) < 0)
     assert learning_rate(cfg.replace(schedule="constant"), 4) == 1e-3
     assert TrainConfig.paper(data=tmp_path, val=tmp_path, out=tmp_path).schedule == "constant"
+
+
+def test_shipped_sigma_is_the_validation_mae_as_a_gaussian_std():
+    """The refinement's prior: every refined parameter has a sigma, MAE * sqrt(pi / 2)."""
+    from ipm.nets.ensemble import Ensemble
+
+    ens = Ensemble.load(None)
+    sigma = ens.sigma()
+    assert {"alpha", "alpha_ply", "R_ply", "r_x", "r_y"} <= set(sigma)
+    mae = ens.info["R_ply"]["val"]["mae"]["R_ply"]
+    assert sigma["R_ply"] == pytest.approx(mae * np.sqrt(np.pi / 2)) and sigma["R_ply"] > 0

@@ -1,0 +1,224 @@
+"""``ipm compare``: neural-only against refined reconstructions over many photos.
+
+The photos are a folder of images, or a dataset made with ``ipm generate`` (its
+``manifest.jsonl`` gives each image's pixel size and true parameters, so the report also
+gives the errors of both reconstructions against the labels).  Each photo is fitted with
+:func:`ipm.refine.fit.fit` as ``ipm fit --refine`` does; one JSON line per photo is appended
+to ``fits.jsonl`` as it finishes, so a stopped run resumes where it stopped (``ipm bench``
+uses the same loop).  The report: ``results.csv`` (a row per photo), ``index.md`` (the
+summary and the table) and ``compare.png`` (photo | neural | refined for a few photos).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ipm.errors import UserError
+from ipm.io import write_text
+from ipm.params import PAPER_INTERVALS, YarnParams
+
+#: The parameters the search refines (:class:`ipm.refine.search.SearchOptions`), in the
+#: order of the report's columns.
+REFINED = ("alpha", "alpha_ply", "R_ply", "r_x", "r_y")
+FITS = "fits.jsonl"
+
+
+@dataclass(frozen=True)
+class Photo:
+    """One photo to fit; ``truth`` when it comes from a labelled dataset."""
+
+    image: Path
+    pixel_size_mm: float
+    truth: YarnParams | None = None
+
+
+def photos_in(folder: Path, pixel_size_mm: float, count: int | None = None) -> list[Photo]:
+    """The photos of ``folder`` sorted by name: a dataset's (with labels and pixel sizes) if
+    it holds a ``manifest.jsonl``, else every image file (at ``pixel_size_mm``)."""
+    from ipm.nets.data import PHOTO_SUFFIXES, read_manifest
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise UserError(f"{folder} is not a folder of photos")
+    if (folder / "manifest.jsonl").is_file():
+        photos = [Photo(r.image, r.pixel_size_mm, r.params) for r in read_manifest(folder)]
+    else:
+        photos = [Photo(p, pixel_size_mm) for p in folder.iterdir()
+                  if p.suffix.lower() in PHOTO_SUFFIXES]
+    if not photos:
+        raise UserError(f"{folder} holds no photos ({', '.join(PHOTO_SUFFIXES)})")
+    photos.sort(key=lambda p: str(p.image))
+    return photos[:count] if count else photos
+
+
+def fit_row(photo: Photo, image: np.ndarray, neural: YarnParams, renderer, options,
+            sigma: dict[str, float] | None) -> dict:
+    """``ipm fit --refine`` on one photo, as one JSON-ready row."""
+    from ipm.refine.fit import fit
+
+    res = fit(image, photo.pixel_size_mm, neural, renderer, options, sigma=sigma)
+    return {"image": str(photo.image), "neural": res.neural.to_dict(),
+            "refined": res.refined.to_dict(), "loss_neural": res.loss_neural,
+            "loss_refined": res.loss_refined, "improved": bool(res.improved),
+            "tilt_deg": res.tilt_deg, "warnings": res.warnings,
+            "trace": res.search.trace if res.search else [], "seconds": res.seconds}
+
+
+def fit_all(path: Path, photos: Sequence[Photo], neural_of: Callable[[int, np.ndarray],
+            YarnParams], options, sigma: dict[str, float] | None, invert: bool = False,
+            progress: Callable[[int, int], None] | None = None) -> list[dict]:
+    """Fit every photo, resuming from the rows already in the JSON-lines file ``path``.
+
+    ``neural_of(i, image)`` gives the nets' parameters of photo ``i``.  A row is appended
+    (and flushed) as each fit ends; a line torn by a kill, and any row that does not belong
+    to the photo at its place, is dropped and that photo fitted again."""
+    from ipm.photo import read_image
+    from ipm.render.renderer import Renderer
+
+    done: list[dict] = []
+    for line in path.read_text(encoding="utf-8").splitlines() if path.is_file() else []:
+        try:
+            row = json.loads(line)
+        except json.JSONDecodeError:
+            break
+        if len(done) == len(photos) or row.get("image") != str(photos[len(done)].image):
+            break
+        done.append(row)
+    write_text(path, "".join(json.dumps(r) + "\n" for r in done))
+    if progress:
+        progress(len(done), len(photos))
+    renderer = None
+    with open(path, "a", encoding="utf-8") as f:
+        for i in range(len(done), len(photos)):
+            image = read_image(photos[i].image)
+            if invert:
+                image = 1 - image
+            renderer = renderer or Renderer()
+            row = fit_row(photos[i], image, neural_of(i, image), renderer, options, sigma)
+            f.write(json.dumps(row) + "\n")
+            f.flush()
+            done.append(row)
+            if progress:
+                progress(i + 1, len(photos))
+    return done
+
+
+def span(k: str) -> float:
+    iv = PAPER_INTERVALS[k]
+    return iv.hi - iv.lo
+
+
+def summary(rows: list[dict], truth: Sequence[YarnParams | None]) -> dict:
+    """Counts, median fit time, and with labels the MAE per refined parameter of both
+    reconstructions (raw units) and the change in %."""
+    out: dict = {"count": len(rows), "improved": int(sum(r["improved"] for r in rows)),
+                 "fit_seconds_median": float(np.median([r["seconds"] for r in rows]))
+                 if rows else None, "params": {}}
+    labelled = [(r, t) for r, t in zip(rows, truth, strict=False) if t is not None]
+    if not labelled:
+        return out
+    for k in REFINED:
+        a = float(np.mean([abs(r["neural"][k] - getattr(t, k)) for r, t in labelled]))
+        b = float(np.mean([abs(r["refined"][k] - getattr(t, k)) for r, t in labelled]))
+        out["params"][k] = {"neural": a, "refined": b,
+                            "change_pct": 100 * (b / a - 1) if a > 0 else 0.0}
+    return out
+
+
+def csv_text(rows: list[dict], truth: Sequence[YarnParams | None]) -> str:
+    """One row per photo: losses, whether the search improved, time, and per refined
+    parameter the neural, refined (and true) values."""
+    keys = ("n", "m", *REFINED)
+    labelled = any(t is not None for t in truth)
+    head = ["image", "loss_neural", "loss_refined", "improved", "seconds", "tilt_deg"]
+    for k in keys:
+        head += [f"neural_{k}", f"refined_{k}"] + ([f"true_{k}"] if labelled else [])
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(head)
+    for r, t in zip(rows, truth, strict=True):
+        cells = [Path(r["image"]).name, f"{r['loss_neural']:.6g}", f"{r['loss_refined']:.6g}",
+                 int(r["improved"]), f"{r['seconds']:.1f}", f"{r.get('tilt_deg', 0.0):.3f}"]
+        for k in keys:
+            cells += [f"{r['neural'][k]:.6g}", f"{r['refined'][k]:.6g}"]
+            if labelled:
+                cells.append("" if t is None else f"{getattr(t, k):.6g}")
+        w.writerow(cells)
+    return buf.getvalue()
+
+
+def markdown(s: dict, rows: list[dict], command: str, figure: str | None) -> str:
+    lines = ["# Neural-only vs refined", "", f"Made by `{command}`.", "",
+             f"{s['count']} photos; the search kept a candidate other than the nets' guess "
+             f"for {s['improved']}; fit time per photo: median "
+             f"{s['fit_seconds_median']:.3g} s." if rows else "No photos fitted.", ""]
+    if s["params"]:
+        lines += ["Errors against the labels (MAE; % of the parameter's range):", "",
+                  "| parameter | neural | refined | change |", "|---|---|---|---|"]
+        for k, v in s["params"].items():
+            lines.append(f"| {k} | {v['neural']:.4g} ({100 * v['neural'] / span(k):.1f}%) | "
+                         f"{v['refined']:.4g} ({100 * v['refined'] / span(k):.1f}%) | "
+                         f"{v['change_pct']:+.0f}% |")
+        lines.append("")
+    lines += ["| photo | loss neural | loss refined | improved |", "|---|---|---|---|"]
+    lines += [f"| {Path(r['image']).name} | {r['loss_neural']:.4f} | {r['loss_refined']:.4f} "
+              f"| {'yes' if r['improved'] else 'no'} |" for r in rows]
+    if figure:
+        lines += ["", f"![photo, neural, refined]({figure})"]
+    return "\n".join(lines) + "\n"
+
+
+def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Photo], picks: list[int],
+                  tags: dict[int, str], invert: bool = False, display_scale: float = 0.25
+                  ) -> None:
+    """photo | neural | refined for the rows ``picks``, each labelled ``tags[i]`` and its
+    losses, rendered with the fit's fiber seed in the shared scene."""
+    from ipm.photo import read_image, write_png
+    from ipm.refine.fit import FitOptions, FitResult, compare_image, display_renders
+    from ipm.render.renderer import Renderer
+
+    renderer, options = Renderer(), FitOptions(display_scale=display_scale, display_spp=16)
+    panels, labels = [], []
+    for i in picks:
+        r = rows[i]
+        res = FitResult(YarnParams.from_dict(r["neural"]), YarnParams.from_dict(r["refined"]),
+                        r["loss_neural"], r["loss_refined"], r["improved"],
+                        tilt_deg=r.get("tilt_deg", 0.0))
+        image = read_image(photos[i].image)
+        panels += list(display_renders(renderer, 1 - image if invert else image,
+                                       photos[i].pixel_size_mm, res, options))
+        labels += [f"{tags[i]}: {Path(r['image']).name}", f"neural  loss {r['loss_neural']:.4f}",
+                   f"refined  loss {r['loss_refined']:.4f}"]
+    write_png(path, compare_image(panels, labels))
+
+
+def compare(folder: Path, out: Path, ensemble, options, prior: bool = True,
+            pixel_size_mm: float = 0.01, count: int | None = None, invert: bool = False,
+            figure_count: int = 4, progress=None, command: str = "ipm compare") -> dict:
+    """Fit every photo of ``folder`` (resuming a stopped run in ``out``) and write the
+    report; returns the summary."""
+    photos = photos_in(folder, pixel_size_mm, count)
+    truth = [p.truth for p in photos]
+    out.mkdir(parents=True, exist_ok=True)
+    rows = fit_all(out / FITS, photos, lambda i, image: ensemble.predict(
+        image, photos[i].pixel_size_mm), options, ensemble.sigma() if prior else None, invert,
+        progress)
+    s = summary(rows, truth)
+    write_text(out / "results.csv", csv_text(rows, truth))
+    figure = None
+    if figure_count and rows:
+        gain = [r["loss_neural"] - r["loss_refined"] for r in rows]
+        picks = sorted(range(len(rows)), key=lambda i: -gain[i])[:figure_count]
+        contact_sheet(out / "compare.png", rows, photos, sorted(picks),
+                      {i: f"photo {i}" for i in picks}, invert)
+        figure = "compare.png"
+    write_text(out / "index.md", markdown(s, rows, command, figure))
+    write_text(out / "summary.json", json.dumps(s, indent=2) + "\n")
+    return s

@@ -1,0 +1,82 @@
+"""`ipm compare`: neural-only vs refined over a labelled dataset and a plain photo folder."""
+
+import csv
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from ipm.errors import UserError
+from ipm.refine.compare import FITS, REFINED, compare, photos_in
+from ipm.refine.fit import FitOptions
+from ipm.refine.search import SearchOptions
+
+OPTIONS = FitOptions(search=SearchOptions(budget=12))
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    from ipm.render.dataset import GenerateOptions, generate_dataset
+
+    folder = tmp_path_factory.mktemp("compare") / "data"
+    generate_dataset(folder, GenerateOptions(count=2, seed=77, split="test"), workers=1)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def ensemble():
+    from ipm.nets.ensemble import Ensemble
+
+    return Ensemble.load(None)
+
+
+def test_labelled_dataset_report(dataset, ensemble, tmp_path):
+    s = compare(dataset, tmp_path, ensemble, OPTIONS, figure_count=1)
+    assert s["count"] == 2 and set(s["params"]) == set(REFINED)
+    rows = list(csv.DictReader((tmp_path / "results.csv").open()))
+    assert len(rows) == 2 and all(r["true_alpha_ply"] for r in rows)
+    for r in rows:
+        assert float(r["loss_refined"]) <= float(r["loss_neural"])
+    index = (tmp_path / "index.md").read_text()
+    assert all(f"| {k} |" in index for k in REFINED) and "compare.png" in index
+    assert (tmp_path / "compare.png").stat().st_size > 0
+
+    # a rerun resumes: the fits file is kept as it is, nothing is fitted again
+    before = (tmp_path / FITS).read_text()
+    again = compare(dataset, tmp_path, ensemble, OPTIONS, figure_count=0)
+    assert (tmp_path / FITS).read_text() == before and again == s
+
+
+def test_plain_folder_has_no_labels(dataset, ensemble, tmp_path):
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    first = sorted((dataset / "images").iterdir())[0]
+    shutil.copy(first, photos / "yarn.png")
+    (photos / "notes.txt").write_text("not a photo")
+    listed = photos_in(photos, 0.04)
+    assert [p.image.name for p in listed] == ["yarn.png"] and listed[0].truth is None
+    s = compare(photos, tmp_path / "out", ensemble, OPTIONS, pixel_size_mm=0.04,
+                figure_count=0)
+    assert s["count"] == 1 and s["params"] == {}
+    head = (tmp_path / "out" / "results.csv").read_text().splitlines()[0]
+    assert "true_" not in head and "refined_alpha" in head
+
+
+def test_folder_without_photos(tmp_path):
+    with pytest.raises(UserError, match="holds no photos"):
+        photos_in(tmp_path, 0.01)
+    with pytest.raises(UserError, match="not a folder"):
+        photos_in(tmp_path / "missing", 0.01)
+
+
+def test_cli_refuses_other_settings_in_one_line(dataset, tmp_path):
+    out = tmp_path / "report"
+    out.mkdir()
+    (out / "settings.json").write_text(json.dumps({"photos": "elsewhere"}))
+    r = subprocess.run([sys.executable, "-m", "ipm", "compare", str(dataset), "--out",
+                        str(out), "--budget", "12"], capture_output=True, text=True)
+    assert r.returncode == 2 and "other settings" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert json.loads((out / "settings.json").read_text()) == {"photos": "elsewhere"}

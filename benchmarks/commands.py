@@ -35,16 +35,8 @@ def bench(
     paper, flyaway distributions, robustness to capture changes, and speed."""
     from dataclasses import replace
 
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
     from ipm.benchmarks.report import BenchOptions, run
+    from ipm.progress import progress_bar
 
     opts = BenchOptions.quick() if quick else BenchOptions()
     opts = replace(opts, seed=seed, **({"count": count} if count else {}),
@@ -58,9 +50,7 @@ def bench(
 
         raise UserError(f"cannot create report folder {out}: {e.strerror}") from None
     check_writable_folder(out)
-    columns = (TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-               TimeElapsedColumn(), TimeRemainingColumn())
-    with Progress(*columns) as bar:
+    with progress_bar() as bar:
         tasks: dict[str, int] = {}
 
         def progress(stage: str, done: int, total: int) -> None:

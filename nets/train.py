@@ -273,18 +273,10 @@ class _progress:
     def __enter__(self) -> Callable[[float], None]:
         if not self.show:
             return lambda loss: None
-        from rich.progress import (
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-            TimeRemainingColumn,
-        )
+        from ipm.progress import progress_bar
 
-        self.bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                            TextColumn("loss {task.fields[loss]:.4f}"), TimeElapsedColumn(),
-                            TimeRemainingColumn(), console=self.console, transient=True)
+        self.bar = progress_bar("loss {task.fields[loss]:.4f}", transient=True,
+                                console=self.console)
         self.bar.start()
         task = self.bar.add_task(self.title, total=self.total, loss=float("nan"))
         return lambda loss: self.bar.update(task, advance=1, loss=loss)

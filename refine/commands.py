@@ -12,6 +12,7 @@ import typer
 from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.io import check_writable_folder
+from ipm.progress import progress_bar
 
 
 def _prepare_folder(folder: Path) -> None:
@@ -48,8 +49,6 @@ def fit(
     render-and-compare search; writes params.json (neural and refined parameters, their
     losses, the settings), neural.png, refined.png and compare.png (photo | neural |
     refined)."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
     from ipm.io import write_text
     from ipm.photo import read_image, write_png
     from ipm.refine.fit import FitOptions, compare_image, display_renders, fit
@@ -67,10 +66,7 @@ def fit(
     ensemble = Ensemble.load(models)
     neural = ensemble.predict(image, pixel_size)
     renderer = Renderer(variant)
-    columns = (TextColumn("{task.description}"), BarColumn(),
-               TextColumn("{task.completed}/{task.total} renders, best loss {task.fields[best]}"),
-               TimeRemainingColumn())
-    with Progress(*columns, transient=True) as bar:
+    with progress_bar("renders, best loss {task.fields[best]}", transient=True) as bar:
         task = bar.add_task("refining" if refine else "scoring", total=budget, best="-")
         result = fit(image, pixel_size, neural, renderer, options, refine,
                      on_eval=lambda i, loss, best: bar.update(task, completed=i,
@@ -119,8 +115,6 @@ def compare(
     import shlex
     import sys
 
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
-
     from ipm.io import write_text
     from ipm.nets.ensemble import Ensemble
     from ipm.refine import compare as cmp
@@ -139,7 +133,7 @@ def compare(
         raise UserError(f"{out} holds a comparison with other settings ({saved}); choose "
                         "another --out or delete it")
     write_text(saved, json.dumps(settings, indent=2) + "\n")
-    with Progress(BarColumn(), MofNCompleteColumn(), TimeRemainingColumn()) as bar:
+    with progress_bar() as bar:
         task = bar.add_task("fits", total=len(listed))
         s = cmp.compare(photos, out, ensemble, options, prior, pixel_size, count, invert,
                         progress=lambda done, total: bar.update(task, completed=done),

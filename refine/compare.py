@@ -24,8 +24,8 @@ from ipm.errors import UserError
 from ipm.io import write_text
 from ipm.params import PAPER_INTERVALS, YarnParams
 
-#: The parameters the search refines (:class:`ipm.refine.search.SearchOptions`), in the
-#: order of the report's columns.
+#: The continuous raw-yarn parameters the reports compare, neural vs refined (the search
+#: refines those of :class:`ipm.refine.search.SearchOptions`; the others keep the nets').
 REFINED = ("alpha", "alpha_ply", "R_ply", "r_x", "r_y")
 FITS = "fits.jsonl"
 

@@ -45,7 +45,7 @@ class SearchOptions:
     as a fraction of each parameter's prior range.  fiber_seed: the seed of the search's
     objective; rescore_seeds, rescore_top: the re-scoring described in the module doc."""
 
-    params: tuple[str, ...] = ("alpha", "alpha_ply", "R_ply", "r_x", "r_y")
+    params: tuple[str, ...] = ("alpha_ply", "R_ply", "r_x", "r_y")
     algorithm: str = "LN_BOBYQA"
     budget: int = 80
     time_s: float | None = None

@@ -120,15 +120,7 @@ def generate(
 ) -> None:
     """Make the synthetic dataset: guided-prior yarns rendered in THE scene, with
     ``manifest.jsonl`` (one JSON object per sample) and ``images/``."""
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
+    from ipm.progress import progress_bar
     from ipm.render.dataset import DEFAULT_SCALE, DEFAULT_SPP, GenerateOptions, generate_dataset
     from ipm.render.photometric import NO_VARIATION, PhotometricRanges
 
@@ -136,10 +128,7 @@ def generate(
                            scale=DEFAULT_SCALE if scale is None else scale,
                            spp=DEFAULT_SPP if spp is None else spp,
                            photometric=PhotometricRanges() if photometric else NO_VARIATION)
-    columns = (TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-               TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"),
-               TimeRemainingColumn())
-    with Progress(*columns, transient=False) as bar:
+    with progress_bar("{task.fields[rate]}") as bar:
         task = bar.add_task(f"{split} -> {out}", total=count, rate="")
         start: list[tuple[float, int]] = []
 

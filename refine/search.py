@@ -39,16 +39,17 @@ ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_
 
 @dataclass(frozen=True)
 class SearchOptions:
-    """params: continuous parameters to search; by default those the loss identifies on
-    held-out photos (docs/identifiability.md) less r_x, which the search moved away from
-    the truth on held-out photos (and alpha, which the loss does not see at the search's
-    resolution): both keep the nets' values.  algorithm: an NLopt derivative-free
-    algorithm.  budget: objective evaluations of the search (re-scoring comes on top).
+    """params: continuous parameters to search.  By default only r_y: on held-out photos
+    (``ipm compare data/test``) joint searches of alpha_ply, R_ply and r_y (and r_x) lowered
+    the image loss but moved R_ply, alpha_ply and r_x away from the truth (the core profile
+    trades R_ply against the ply radii, and the autocorrelation has side minima in
+    alpha_ply), while r_y came closer; the other parameters keep the nets' values.
+    algorithm: an NLopt derivative-free algorithm.  budget: objective evaluations of the search (re-scoring comes on top).
     time_s: wall-time bound of the search.  width: half-width of the box around the start,
     as a fraction of each parameter's prior range.  fiber_seed: the seed of the search's
     objective; rescore_seeds, rescore_top: the re-scoring described in the module doc."""
 
-    params: tuple[str, ...] = ("alpha_ply", "R_ply", "r_y")
+    params: tuple[str, ...] = ("r_y",)
     algorithm: str = "LN_BOBYQA"
     budget: int = 80
     time_s: float | None = None

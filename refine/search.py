@@ -44,10 +44,12 @@ class SearchOptions:
     the image loss but moved R_ply, alpha_ply and r_x away from the truth (the core profile
     trades R_ply against the ply radii, and the autocorrelation has side minima in
     alpha_ply), while r_y came closer; the other parameters keep the nets' values.
-    algorithm: an NLopt derivative-free algorithm.  budget: objective evaluations of the search (re-scoring comes on top).
-    time_s: wall-time bound of the search.  width: half-width of the box around the start,
-    as a fraction of each parameter's prior range.  fiber_seed: the seed of the search's
-    objective; rescore_seeds, rescore_top: the re-scoring described in the module doc."""
+
+    algorithm: an NLopt derivative-free algorithm.  budget: objective evaluations of the
+    search (re-scoring comes on top).  time_s: wall-time bound of the search.  width:
+    half-width of the box around the start, as a fraction of each parameter's prior range.
+    fiber_seed: the seed of the search's objective; rescore_seeds, rescore_top: the
+    re-scoring described in the module doc."""
 
     params: tuple[str, ...] = ("r_y",)
     algorithm: str = "LN_BOBYQA"

@@ -75,3 +75,19 @@ def test_existing_output_survives_a_failed_run(tmp_path):
     assert out.read_bytes() == before
     assert np.load(out)["points"].dtype == np.float32
     assert not [p for p in tmp_path.iterdir() if ".tmp" in p.name]
+
+
+def test_atomic_writes_leave_files_readable_like_open_does(tmp_path):
+    """The temporary file of an atomic write is made 0600; the result gets the mode a plain
+    open() would give (0666 less the umask)."""
+    import os
+    import stat
+
+    from ipm.io import write_text
+
+    mask = os.umask(0o022)
+    try:
+        write_text(tmp_path / "a.json", "{}")
+        assert stat.S_IMODE((tmp_path / "a.json").stat().st_mode) == 0o644
+    finally:
+        os.umask(mask)

@@ -35,6 +35,7 @@ from ipm.errors import UserError
 from ipm.io import write_text
 from ipm.params import PAPER_INTERVALS, THICKNESS_CLASSES, YarnParams
 from ipm.refine.compare import summary as refine_summary
+from ipm.refine.search import SearchOptions
 
 #: The paper's validation errors of its parameter-specific networks (Table 2).
 PAPER = {"r_x": 0.0080, "r_y": 0.0066, "m": 12, "alpha": 0.0807, "alpha_ply": 0.0614,
@@ -350,6 +351,8 @@ def run(out: Path, opts: BenchOptions, data: Path | None = None, models: Path | 
                      "heldout": str(folder), "paper": PAPER, "paper_speed": PAPER_SPEED}
     results["accuracy"] = {name: accuracy(p, truth) for name, p in
                            pred["predictions"].items()}
+    results["variant_best_epoch"] = {name: approaches[name].info["raw"].get("epoch")
+                                     for name in approaches if name != ENSEMBLE}
     results["baseline"] = baseline_accuracy(base, truth)
     results["flyaway_distribution"] = _cache(out, "flyaway", lambda: flyaway_distribution(
         pred["predictions"][ENSEMBLE], truth, [r.seed for r in records], base))
@@ -417,11 +420,16 @@ def markdown(results: dict, figures: dict[str, str], command: str) -> str:
                  "two CPU cores; `nets/models/README.md`)" if results["settings"]["models"]
                  == "shipped" else f"ours are held-out MAE of the models in "
                  f"`{results['settings']['models']}`")
+              + "".join(f"; `{n}`: its best epoch on the validation set, {e}"
+                        for n, e in results.get("variant_best_epoch", {}).items())
               + ".  The paper does not state the units of its table (its `m` of 12 reads as "
               "a raw fiber count; the others could be raw mm or normalised), so its values "
               "stand as printed.", "",
               "## Ensemble + refinement", "",
-              f"{ref['count']} photos; the search kept a candidate other than the nets' guess "
+              f"`ipm fit --refine` with its defaults (the search refines "
+              f"{', '.join(SearchOptions().params)}; the other parameters keep the nets' "
+              f"values) on {ref['count']} photos; the search kept a candidate other than the "
+              "nets' guess "
               f"for {ref['improved']}; fit time per photo: median "
               f"{_f(ref['fit_seconds_median'], 3)} s.", "",
               "| parameter | neural MAE | % of range | refined MAE | % of range | change |",

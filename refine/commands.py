@@ -29,7 +29,10 @@ def fit(
     out: Annotated[Path, typer.Option("--out", "-o", help="folder for params.json, the "
                                       "renders and compare.png")] = Path("fit"),
     refine: Annotated[bool, typer.Option("--refine/--no-refine", help="refine the nets' "
-                                         "guess by render-and-compare")] = False,
+                                         "guess by render-and-compare (experimental: it "
+                                         "lowers the image loss, but on held-out renders "
+                                         "the refined parameters are not closer to the "
+                                         "truth; see docs/compare)")] = False,
     pixel_size: Annotated[float, typer.Option(help="mm per photo pixel at the yarn (the "
                                               "scene's is 0.01)")] = PIXEL_SIZE_MM,
     models: Annotated[Path | None, typer.Option(help="trained ensemble folder (default: the "

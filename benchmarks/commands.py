@@ -39,7 +39,7 @@ def bench(
     from ipm.progress import progress_bar
 
     opts = BenchOptions.quick() if quick else BenchOptions()
-    opts = replace(opts, seed=seed, **({"count": count} if count else {}),
+    opts = replace(opts, seed=seed, **({"count": count} if count is not None else {}),
                    **({"refine_count": refine_count} if refine_count is not None else {}))
     opts = replace(opts, robust_count=min(opts.robust_count, opts.count),
                    refine_count=min(opts.refine_count, opts.count))

@@ -17,7 +17,7 @@ def bench(
     out: Annotated[Path, typer.Option("--out", "-o", help="report folder (index.md, "
                                       "results.json, plots); a stopped run resumes")]
     = Path("report"),
-    quick: Annotated[bool, typer.Option("--quick", help="a small run, about 10 minutes on "
+    quick: Annotated[bool, typer.Option("--quick", help="a small run, 3-4 minutes on "
                                         "2 cores")] = False,
     data: Annotated[Path | None, typer.Option(help="held-out set made with `ipm generate` "
                                               "(default: generated into OUT/heldout)")] = None,

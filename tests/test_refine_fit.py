@@ -81,3 +81,15 @@ def test_bad_photo_one_line(models, tmp_path, content, message):
 def test_missing_models_one_line(photo, tmp_path):
     r = ipm("fit", photo, "--models", tmp_path / "none", "--out", tmp_path / "fit")
     assert r.returncode == 2 and "holds no trained models" in r.stderr
+
+
+@pytest.mark.parametrize("degrees", [-1.2, 0.0, 1.5])
+def test_photo_tilt_is_the_rendered_rotation(degrees):
+    """The tilt measured on a real render is the yarn's rotation in the scene (the search
+    renders at it), counter-clockwise positive."""
+    from ipm.refine.fit import photo_tilt
+    from ipm.render.photometric import Photometric
+    from ipm.render.renderer import Renderer
+
+    image = Renderer().render(preset("golden"), 1, 0.2, 4, 0, Photometric(rotation_deg=degrees))
+    assert photo_tilt(linear_to_srgb(image)) == pytest.approx(degrees, abs=0.3)

@@ -35,11 +35,10 @@ TOTAL = "search loss"
 
 def group_losses(objective, params, seed: int) -> dict[str, float]:
     """Each group's loss and the weighted search loss of one evaluation of ``objective``."""
-    from ipm.refine.stats import GROUPS
+    from ipm.refine.stats import weighted_sum
 
-    d = objective.group_distances(params, seed)
-    out = {g: float(d[g]) for g in GROUPS}
-    out[TOTAL] = float(sum(objective.weights.get(g, 1.0) * d[g] for g in GROUPS))
+    out = objective.group_distances(params, seed)
+    out[TOTAL] = float(weighted_sum(out, objective.weights))
     return out
 
 

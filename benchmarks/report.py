@@ -85,8 +85,7 @@ class BenchOptions:
 
 
 def span(k: str) -> float:
-    iv = PAPER_INTERVALS[k]
-    return iv.hi - iv.lo
+    return PAPER_INTERVALS[k].width
 
 
 def _cache(folder: Path, name: str, make: Callable[[], object]):
@@ -235,7 +234,6 @@ def refine_all(folder: Path, records: list, neural: list[dict], sigma: dict, bud
     ``ipm compare`` (:func:`ipm.refine.compare.fit_all`) into ``folder/cache/refine.jsonl``."""
     from ipm.refine.compare import fit_all
     from ipm.refine.fit import FitOptions
-    from ipm.refine.search import SearchOptions
 
     path = folder / "cache" / "refine.jsonl"
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -37,6 +37,10 @@ class Interval(NamedTuple):
     meaning: str
     integer: bool = False
 
+    @property
+    def width(self) -> float:
+        return self.hi - self.lo
+
 
 #: The paper's learnable parameters, in the fixed order of the normalised vector.
 PAPER_INTERVALS: dict[str, Interval] = {

@@ -138,7 +138,7 @@ def compare(
     write_text(saved, json.dumps(settings, indent=2) + "\n")
     with progress_bar() as bar:
         task = bar.add_task("fits", total=len(listed))
-        s = cmp.compare(photos, out, ensemble, options, prior, pixel_size, count, invert,
+        s = cmp.compare(listed, out, ensemble, options, prior, invert,
                         progress=lambda done, total: bar.update(task, completed=done),
                         command="ipm " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
     for k, v in s["params"].items():

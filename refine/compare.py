@@ -110,11 +110,6 @@ def fit_all(path: Path, photos: Sequence[Photo], neural_of: Callable[[int, np.nd
     return done
 
 
-def span(k: str) -> float:
-    iv = PAPER_INTERVALS[k]
-    return iv.hi - iv.lo
-
-
 def summary(rows: list[dict], truth: Sequence[YarnParams | None]) -> dict:
     """Counts, median fit time, and with labels the MAE per refined parameter of both
     reconstructions (raw units) and the change in %."""
@@ -163,8 +158,9 @@ def markdown(s: dict, rows: list[dict], command: str, figure: str | None) -> str
         lines += ["Errors against the labels (MAE; % of the parameter's range):", "",
                   "| parameter | neural | refined | change |", "|---|---|---|---|"]
         for k, v in s["params"].items():
-            lines.append(f"| {k} | {v['neural']:.4g} ({100 * v['neural'] / span(k):.1f}%) | "
-                         f"{v['refined']:.4g} ({100 * v['refined'] / span(k):.1f}%) | "
+            width = PAPER_INTERVALS[k].width
+            lines.append(f"| {k} | {v['neural']:.4g} ({100 * v['neural'] / width:.1f}%) | "
+                         f"{v['refined']:.4g} ({100 * v['refined'] / width:.1f}%) | "
                          f"{v['change_pct']:+.0f}% |")
         lines.append("")
     lines += ["| photo | loss neural | loss refined | improved |", "|---|---|---|---|"]
@@ -199,12 +195,11 @@ def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Photo], picks: 
     write_png(path, compare_image(panels, labels))
 
 
-def compare(folder: Path, out: Path, ensemble, options, prior: bool = True,
-            pixel_size_mm: float = 0.01, count: int | None = None, invert: bool = False,
-            figure_count: int = 4, progress=None, command: str = "ipm compare") -> dict:
-    """Fit every photo of ``folder`` (resuming a stopped run in ``out``) and write the
+def compare(photos: Sequence[Photo], out: Path, ensemble, options, prior: bool = True,
+            invert: bool = False, figure_count: int = 4, progress=None,
+            command: str = "ipm compare") -> dict:
+    """Fit every photo (:func:`photos_in`), resuming a stopped run in ``out``, and write the
     report; returns the summary."""
-    photos = photos_in(folder, pixel_size_mm, count)
     truth = [p.truth for p in photos]
     out.mkdir(parents=True, exist_ok=True)
     rows = fit_all(out / FITS, photos, lambda i, image: ensemble.predict(

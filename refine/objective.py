@@ -13,7 +13,7 @@ import torch
 
 from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb
-from ipm.refine.stats import stat_distance, yarn_statistics
+from ipm.refine.stats import group_distances, stat_distance, yarn_statistics
 from ipm.render.photometric import Photometric
 
 #: Group weights from ``python -m ipm.benchmarks.identifiability`` on 10 held-out photos
@@ -70,14 +70,17 @@ class RenderObjective:
         return float(stat_distance(yarn_statistics(to_tensor(img)), self.photo_stats,
                                    self.weights)[0])
 
-    def group_distances(self, params: YarnParams, seed: int) -> dict[str, float]:
-        """Each statistics group's mean squared difference to the photo's (unweighted), of
-        the statistics averaged over ``seeds_per_eval`` fiber seeds."""
+    def _mean_stats(self, params: YarnParams, seed: int) -> dict[str, torch.Tensor]:
         stats = [yarn_statistics(to_tensor(self.render(params, seed + 1000 * k)))
                  for k in range(self.seeds_per_eval)]
-        return {g: float((torch.stack([s[g] for s in stats]).mean(dim=0)
-                          - self.photo_stats[g]).square().mean()) for g in stats[0]}
+        return {g: torch.stack([s[g] for s in stats]).mean(dim=0) for g in stats[0]}
+
+    def group_distances(self, params: YarnParams, seed: int) -> dict[str, float]:
+        """Each statistics group's distance to the photo's (unweighted), of the statistics
+        averaged over ``seeds_per_eval`` fiber seeds."""
+        d = group_distances(self._mean_stats(params, seed), self.photo_stats)
+        return {g: float(v[0]) for g, v in d.items()}
 
     def __call__(self, params: YarnParams, seed: int) -> float:
-        d = self.group_distances(params, seed)
-        return float(sum(self.weights.get(g, 1.0) * v for g, v in d.items()))
+        return float(stat_distance(self._mean_stats(params, seed), self.photo_stats,
+                                   self.weights)[0])

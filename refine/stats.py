@@ -206,12 +206,22 @@ def yarn_stat_loss(x: Tensor, x_o: Tensor, weights: dict[str, float] | None = No
     return stat_distance(yarn_statistics(x, **kwargs), yarn_statistics(x_o, **kwargs), weights)
 
 
+def group_distances(sx: dict[str, Tensor], so: dict[str, Tensor]) -> dict[str, Tensor]:
+    """Per group, the (B,) mean squared difference of two :func:`yarn_statistics` results."""
+    return {k: (sx[k] - so[k]).square().mean(dim=1) for k in GROUPS}
+
+
+def weighted_sum(distances: dict, weights: dict[str, float] | None = None):
+    """The loss from :func:`group_distances` (tensors or floats): weights default to 1."""
+    weights = weights or {}
+    return sum(weights.get(k, 1.0) * distances[k] for k in GROUPS)
+
+
 def stat_distance(sx: dict[str, Tensor], so: dict[str, Tensor],
                   weights: dict[str, float] | None = None) -> Tensor:
     """(B,) weighted mean squared difference of two :func:`yarn_statistics` results (to
     compare many renders with one photo whose statistics are computed once)."""
-    weights = weights or {}
-    return sum(weights.get(k, 1.0) * (sx[k] - so[k]).square().mean(dim=1) for k in GROUPS)
+    return weighted_sum(group_distances(sx, so), weights)
 
 
 class YarnStatLoss(nn.Module):

@@ -33,7 +33,7 @@ def ensemble():
 
 
 def test_labelled_dataset_report(dataset, ensemble, tmp_path):
-    s = compare(dataset, tmp_path, ensemble, OPTIONS, figure_count=1)
+    s = compare(photos_in(dataset, 0.01), tmp_path, ensemble, OPTIONS, figure_count=1)
     assert s["count"] == 2 and set(s["params"]) == set(REFINED)
     rows = list(csv.DictReader((tmp_path / "results.csv").open()))
     assert len(rows) == 2 and all(r["true_alpha_ply"] for r in rows)
@@ -45,7 +45,7 @@ def test_labelled_dataset_report(dataset, ensemble, tmp_path):
 
     # a rerun resumes: the fits file is kept as it is, nothing is fitted again
     before = (tmp_path / FITS).read_text()
-    again = compare(dataset, tmp_path, ensemble, OPTIONS, figure_count=0)
+    again = compare(photos_in(dataset, 0.01), tmp_path, ensemble, OPTIONS, figure_count=0)
     assert (tmp_path / FITS).read_text() == before and again == s
 
 
@@ -57,8 +57,7 @@ def test_plain_folder_has_no_labels(dataset, ensemble, tmp_path):
     (photos / "notes.txt").write_text("not a photo")
     listed = photos_in(photos, 0.04)
     assert [p.image.name for p in listed] == ["yarn.png"] and listed[0].truth is None
-    s = compare(photos, tmp_path / "out", ensemble, OPTIONS, pixel_size_mm=0.04,
-                figure_count=0)
+    s = compare(listed, tmp_path / "out", ensemble, OPTIONS, figure_count=0)
     assert s["count"] == 1 and s["params"] == {}
     head = (tmp_path / "out" / "results.csv").read_text().splitlines()[0]
     assert "true_" not in head and "refined_alpha" in head

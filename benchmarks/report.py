@@ -32,7 +32,7 @@ import numpy as np
 
 from ipm.benchmarks.machine import machine_info
 from ipm.errors import UserError
-from ipm.io import write_text
+from ipm.io import check_same_settings, write_text
 from ipm.params import PAPER_INTERVALS, THICKNESS_CLASSES, YarnParams
 from ipm.refine.compare import summary as refine_summary
 from ipm.refine.search import SearchOptions
@@ -331,10 +331,7 @@ def run(out: Path, opts: BenchOptions, data: Path | None = None, models: Path | 
     settings = {**asdict(opts), "data": str(data) if data else None,
                 "models": str(models) if models else "shipped",
                 "variants": str(variants) if variants else None}
-    old = out / "cache" / "settings.json"
-    if old.is_file() and json.loads(old.read_text()) != settings:
-        raise UserError(f"{out} holds a run with other settings ({old}); choose another "
-                        "--out or delete it")
+    check_same_settings(out / "cache" / "settings.json", settings, "a run")
     approaches = load_approaches(models, variants)  # before anything is written
     ens = approaches[ENSEMBLE]
     folder = data or heldout_set(out / "heldout", opts, stage("held-out set"))

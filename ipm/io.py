@@ -35,6 +35,18 @@ def _umask() -> int:
     return mask
 
 
+def check_same_settings(path: Path, settings: dict, what: str) -> None:
+    """Raise a :class:`~ipm.errors.UserError` if ``path`` holds other settings than
+    ``settings``: a resumable command refuses to mix two runs in one folder."""
+    import json
+
+    from ipm.errors import UserError
+
+    if path.is_file() and json.loads(path.read_text(encoding="utf-8")) != settings:
+        raise UserError(f"the folder of {path} holds {what} made with other settings; "
+                        "choose another --out or delete it")
+
+
 def check_writable_folder(folder: Path) -> None:
     """Raise a :class:`~ipm.errors.UserError` naming ``folder`` unless it exists and is
     writable: a command checks this before any work, so it fails before writing anything."""

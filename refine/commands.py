@@ -11,7 +11,7 @@ import typer
 
 from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
-from ipm.io import check_writable_folder
+from ipm.io import check_same_settings, check_writable_folder
 from ipm.progress import progress_bar
 
 
@@ -132,9 +132,7 @@ def compare(
                 "models": str(models) if models else "shipped", "budget": budget,
                 "algorithm": algorithm, "prior": prior, "invert": invert}
     saved = out / "settings.json"
-    if saved.is_file() and json.loads(saved.read_text(encoding="utf-8")) != settings:
-        raise UserError(f"{out} holds a comparison with other settings ({saved}); choose "
-                        "another --out or delete it")
+    check_same_settings(saved, settings, "a comparison")
     write_text(saved, json.dumps(settings, indent=2) + "\n")
     with progress_bar() as bar:
         task = bar.add_task("fits", total=len(listed))

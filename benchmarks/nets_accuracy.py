@@ -27,15 +27,6 @@ PAPER = {"r_x": 0.0080, "r_y": 0.0066, "m": 12, "alpha": 0.0807, "alpha_ply": 0.
 RAW_CONTINUOUS = ("m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply")
 
 
-def mean_prediction(ens: Ensemble) -> dict[str, float]:
-    """Raw parameter values of the predict-the-mean baseline, from the nets' train_mean."""
-    values: dict[str, float] = {}
-    for name, net in ens.nets.items():
-        spec, mean = net.config.spec, np.asarray(ens.info[name]["train_mean"])
-        values.update(spec.decode(mean))
-    return values
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", required=True, help="held-out set (`ipm generate --out`)")
@@ -48,7 +39,7 @@ def main() -> None:
     pred = [ens.predict(read_image(r.image), r.pixel_size_mm, args.crops) for r in records]
     true = [r.params for r in records]
     pairs = list(zip(pred, true, strict=True))
-    base = mean_prediction(ens)
+    base = ens.mean_prediction(records[0].pixel_size_mm)  # a dataset has one scale
     rows = ["| parameter | MAE | % of range | baseline MAE | % of range | vs baseline | "
             "paper (val.) |", "|---|---|---|---|---|---|---|"]
     for k in PARAM_ORDER:

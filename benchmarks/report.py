@@ -166,14 +166,6 @@ def predict_all(approaches: dict, records: list, progress=None) -> dict:
     return {"predictions": preds, "predict_seconds": seconds}
 
 
-def mean_prediction(ens) -> dict[str, float]:
-    """The predict-the-mean baseline: each net's mean training label, decoded."""
-    values: dict[str, float] = {}
-    for name, net in ens.nets.items():
-        values.update(net.config.spec.decode(np.asarray(ens.info[name]["train_mean"])))
-    return values
-
-
 def accuracy(preds: list[dict], truth: list[YarnParams], names=RAW + FLYAWAY) -> dict:
     """Per parameter: MAE in raw units and in % of the interval; ply-count and thickness
     accuracy."""
@@ -340,7 +332,8 @@ def run(out: Path, opts: BenchOptions, data: Path | None = None, models: Path | 
     _cache(out, "settings", lambda: settings)
     pred = _cache(out, "predictions", lambda: predict_all(approaches, records,
                                                           stage("predict")))
-    base = mean_prediction(ens)
+    pixel_size = records[0].pixel_size_mm  # a dataset has one scale
+    base = ens.mean_prediction(pixel_size)
     results: dict = {"settings": settings, "machine": machine_info("mitsuba", "drjit", "torch",
                                                                   "nlopt", "kornia"),
                      "heldout": str(folder), "paper": PAPER, "paper_speed": PAPER_SPEED}
@@ -352,7 +345,7 @@ def run(out: Path, opts: BenchOptions, data: Path | None = None, models: Path | 
     results["flyaway_distribution"] = _cache(out, "flyaway", lambda: flyaway_distribution(
         pred["predictions"][ENSEMBLE], truth, [r.seed for r in records], base))
     rows = refine_all(out, records[: opts.refine_count],
-                      pred["predictions"][ENSEMBLE][: opts.refine_count], ens.sigma(),
+                      pred["predictions"][ENSEMBLE][: opts.refine_count], ens.sigma(pixel_size),
                       opts.budget, stage("refine"))
     results["refine"] = refine_summary(rows, truth[: len(rows)])
     results["robustness"] = _cache(out, "robustness", lambda: robustness(

@@ -91,6 +91,8 @@ def predict(
         check_output(out)
     image = read_image(cfg.photo)
     ensemble = _load(cfg.models, cfg.device)
+    if w := ensemble.upsampling_warning(cfg.pixel_size):
+        typer.echo(f"warning: {w}", err=True)
     params = ensemble.predict(1 - image if cfg.invert else image, cfg.pixel_size, cfg.crops)
     typer.echo(params.to_json())
     if out is not None:
@@ -122,7 +124,7 @@ def saliency(
     cfg = SaliencyConfig(photo, param, models, pixel_size, invert)
     check_output(out)
     image = read_image(cfg.photo)
-    net, columns = net_for(_load(cfg.models, "cpu"), cfg.param)
+    net, columns = net_for(_load(cfg.models, "cpu"), cfg.param, cfg.pixel_size)
     scaled = to_scene_pitch(1 - image if cfg.invert else image, cfg.pixel_size,
                             net.config.input_scale)
     if min(scaled.shape[:2]) < 32:

@@ -30,6 +30,8 @@ from ipm.photo import to_scene_pitch
 ENSEMBLE = "ensemble.json"
 #: Default models, shipped inside the package.
 SHIPPED = Path(__file__).parent / "models"
+#: How much a net's input may be upsampled from the photo before a finer net is not used.
+MAX_UPSAMPLING = 1.25
 
 
 @dataclass
@@ -64,16 +66,59 @@ class Ensemble:
                             "(an unfinished run? train the remaining nets)")
         return cls(nets, info, folder)
 
-    def sigma(self) -> dict[str, float]:
-        """The nets' error per continuous parameter as a Gaussian standard deviation: the
-        validation MAE each net stored with its best epoch, times sqrt(pi / 2) (for a
-        Gaussian error, MAE = sigma sqrt(2 / pi)).  The refinement's prior
-        (:func:`ipm.refine.search.search`)."""
+    def chosen(self, pixel_size_mm: float = PIXEL_SIZE_MM) -> dict[str, YarnNet]:
+        """The nets that predict for a photo of ``pixel_size_mm``.  Where several nets decide
+        the same parameters at different input scales (e.g. ``m`` at 0.04 and ``m-0.5`` at
+        0.02 mm per pixel), the finest one the photo supplies without upsampling by more
+        than :data:`MAX_UPSAMPLING`, else the coarsest: an upsampled photo is blurred, off
+        the net's training data (a 0.02 mm ``m`` net on 0.04 mm renders is worse than
+        predicting the mean, ``nets/models/README.md``)."""
+        groups: dict[tuple[str, ...], list[str]] = {}
+        for name, net in self.nets.items():
+            groups.setdefault(net.config.spec.decides, []).append(name)
+
+        def upsampling(name: str) -> float:
+            return pixel_size_mm * self.nets[name].config.input_scale / PIXEL_SIZE_MM
+
+        keep = set()
+        for names in groups.values():
+            fine = [n for n in names if upsampling(n) <= MAX_UPSAMPLING]
+            keep.add(max(fine, key=upsampling) if fine else min(names, key=upsampling))
+        return {name: net for name, net in self.nets.items() if name in keep}
+
+    def sigma(self, pixel_size_mm: float = PIXEL_SIZE_MM) -> dict[str, float]:
+        """The error per continuous parameter of the nets :meth:`chosen` for this pixel size,
+        as a Gaussian standard deviation: the validation MAE each net stored with its best
+        epoch, times sqrt(pi / 2) (for a Gaussian error, MAE = sigma sqrt(2 / pi)).  The
+        refinement's prior (:func:`ipm.refine.search.search`)."""
         out = {}
-        for info in self.info.values():
-            for k, mae in info.get("val", {}).get("mae", {}).items():
+        for name in self.chosen(pixel_size_mm):
+            for k, mae in self.info[name].get("val", {}).get("mae", {}).items():
                 out[k] = float(mae) * float(np.sqrt(np.pi / 2))
         return out
+
+    def mean_prediction(self, pixel_size_mm: float = PIXEL_SIZE_MM) -> dict[str, float]:
+        """The predict-the-mean baseline of the nets :meth:`chosen` for this pixel size: each
+        net's mean training label, decoded."""
+        values: dict[str, float] = {}
+        for name, net in self.chosen(pixel_size_mm).items():
+            values.update(net.config.spec.decode(np.asarray(self.info[name]["train_mean"])))
+        return values
+
+    def upsampling_warning(self, pixel_size_mm: float) -> str | None:
+        """A warning naming the nets (of those :meth:`chosen`) whose input pixels are finer
+        than the photo's by more than :data:`MAX_UPSAMPLING`: they see an upsampled, blurred
+        photo, off their training data, and their parameters are less reliable."""
+        nets = self.chosen(pixel_size_mm)
+        coarse = sorted(name for name, net in nets.items()
+                        if pixel_size_mm * net.config.input_scale / PIXEL_SIZE_MM
+                        > MAX_UPSAMPLING)
+        if not coarse:
+            return None
+        finest = min(PIXEL_SIZE_MM / nets[n].config.input_scale for n in coarse)
+        return (f"the photo's pixels ({pixel_size_mm:g} mm) are coarser than the "
+                f"{', '.join(coarse)} net{'s' if len(coarse) > 1 else ''} need "
+                f"({finest:g} mm): upsampled, so these parameters are less reliable")
 
     @torch.no_grad()
     def outputs(self, image: np.ndarray, pixel_size_mm: float = PIXEL_SIZE_MM,
@@ -84,7 +129,7 @@ class Ensemble:
             raise ValueError(f"expected an (H, W, 3) image, got shape {image.shape}")
         scaled: dict[float, np.ndarray] = {}
         result = {}
-        for name, net in self.nets.items():
+        for name, net in self.chosen(pixel_size_mm).items():
             s = net.config.input_scale
             if s not in scaled:
                 scaled[s] = to_scene_pitch(image, pixel_size_mm, s)

@@ -39,11 +39,13 @@ def saliency(net: YarnNet, x: torch.Tensor, columns: list[int] | None = None) ->
     return grad.abs().amax(1)
 
 
-def net_for(ensemble: Ensemble, param: str) -> tuple[YarnNet, list[int] | None]:
-    """The net that decides ``param`` (a parameter or a net name) and its output columns."""
+def net_for(ensemble: Ensemble, param: str, pixel_size_mm: float
+            ) -> tuple[YarnNet, list[int] | None]:
+    """The net that decides ``param`` (a parameter or a net name) for a photo of
+    ``pixel_size_mm`` (:meth:`Ensemble.chosen`), and its output columns."""
     if param in ensemble.nets:
         return ensemble.nets[param], None
-    for net in ensemble.nets.values():
+    for net in ensemble.chosen(pixel_size_mm).values():
         spec = net.config.spec
         if param in spec.decides:
             return net, None if spec.is_classification else [spec.params.index(param)]

@@ -74,7 +74,9 @@ def fit(
         result = fit(image, pixel_size, neural, renderer, options, refine,
                      on_eval=lambda i, loss, best: bar.update(task, completed=i,
                                                              best=f"{best:.4f}"),
-                     sigma=ensemble.sigma() if prior else None)
+                     sigma=ensemble.sigma(pixel_size) if prior else None)
+    if w := ensemble.upsampling_warning(pixel_size):
+        result.warnings.insert(0, w)
     for w in result.warnings:
         typer.echo(f"warning: {w}", err=True)
     shown, neural_img, refined_img = display_renders(renderer, image, pixel_size, result,

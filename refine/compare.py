@@ -203,7 +203,8 @@ def compare(photos: Sequence[Photo], out: Path, ensemble, options, prior: bool =
     truth = [p.truth for p in photos]
     out.mkdir(parents=True, exist_ok=True)
     rows = fit_all(out / FITS, photos, lambda i, image: ensemble.predict(
-        image, photos[i].pixel_size_mm), options, ensemble.sigma() if prior else None, invert,
+        image, photos[i].pixel_size_mm), options,
+        ensemble.sigma(photos[0].pixel_size_mm) if prior and photos else None, invert,
         progress)
     s = summary(rows, truth)
     write_text(out / "results.csv", csv_text(rows, truth))

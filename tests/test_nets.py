@@ -237,3 +237,21 @@ def test_shipped_sigma_is_the_validation_mae_as_a_gaussian_std():
     assert {"alpha", "alpha_ply", "R_ply", "r_x", "r_y"} <= set(sigma)
     mae = ens.info["R_ply"]["val"]["mae"]["R_ply"]
     assert sigma["R_ply"] == pytest.approx(mae * np.sqrt(np.pi / 2)) and sigma["R_ply"] > 0
+
+
+@pytest.mark.parametrize("pixel_size, m_net", [(0.01, "m-0.5"), (0.02, "m-0.5"),
+                                               (0.04, "m"), (0.1, "m")])
+def test_shipped_ensemble_picks_the_finest_net_the_photo_supplies(pixel_size, m_net):
+    """m and alpha ship at two input scales: a photo of 0.02 mm per pixel or finer gets the
+    0.02 mm nets, a coarser one the 0.04 mm nets (upsampling would blur it), and every
+    parameter is decided by one net."""
+    from ipm.nets.ensemble import Ensemble
+
+    ens = Ensemble.load(None)
+    chosen = ens.chosen(pixel_size)
+    assert m_net in chosen and m_net.replace("m", "alpha") in chosen
+    decided = [k for net in chosen.values() for k in net.config.spec.decides]
+    assert sorted(decided) == sorted(set(decided))
+    sigma = ens.sigma(pixel_size)["m"] / np.sqrt(np.pi / 2)
+    assert sigma == pytest.approx(ens.info[m_net]["val"]["mae"]["m"])
+    assert ens.upsampling_warning(pixel_size) is None or pixel_size > 0.05

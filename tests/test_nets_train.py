@@ -93,6 +93,23 @@ def test_predict_cli(trained, photo, tmp_path):
     assert r.returncode == 0, r.stderr
 
 
+def test_predict_warns_when_the_photo_is_coarser_than_the_nets(trained, photo):
+    """The tiny nets work at 0.1 mm per pixel: a photo of 0.1 mm passes, one of 0.2 mm is
+    upsampled for every net, and that is said (the prediction still comes)."""
+    from ipm.nets.ensemble import Ensemble
+
+    ens = Ensemble.load(trained["ensemble"])
+    assert ens.upsampling_warning(0.01 / SCALE) is None
+    assert ens.upsampling_warning(0.01 / SCALE * 1.2) is None
+    w = ens.upsampling_warning(0.02 / SCALE)
+    assert w is not None and "alpha_ply" in w and "0.1 mm" in w
+    r = ipm("predict", photo, "--pixel-size", 0.02 / SCALE, "--models", trained["ensemble"])
+    assert r.returncode == 0, r.stderr
+    assert "warning: the photo's pixels (0.2 mm) are coarser" in r.stderr
+    assert "warning" not in ipm("predict", photo, "--pixel-size", 0.01 / SCALE, "--models",
+                                trained["ensemble"]).stderr
+
+
 @pytest.mark.parametrize("param", ["alpha_ply", "n", "l_hair", "flyaways"])
 def test_saliency_cli(trained, photo, tmp_path, param):
     r = ipm("saliency", photo, "--param", param, "--pixel-size", 0.01 / SCALE,

@@ -15,6 +15,14 @@ from ipm.io import check_same_settings, check_writable_folder
 from ipm.progress import progress_bar
 
 
+_PARAMS_HELP = ("comma-separated continuous parameters to search (e.g. r_y,alpha_ply); the "
+                "others keep the nets' values")
+
+
+def _search_params(text: str) -> tuple[str, ...]:
+    return tuple(p.strip() for p in text.split(",") if p.strip())
+
+
 def _prepare_folder(folder: Path) -> None:
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -41,6 +49,7 @@ def fit(
     time_limit: Annotated[float | None, typer.Option("--time", help="wall-time bound of the "
                                                      "search, seconds")] = None,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = "LN_BOBYQA",
+    params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = "r_y",
     prior: Annotated[bool, typer.Option("--prior/--no-prior", help="keep the search near the "
                                         "nets' guess, weighted by the nets' validation error "
                                         "(MAP); --no-prior: the image loss alone")] = True,
@@ -58,7 +67,8 @@ def fit(
     from ipm.refine.search import SearchOptions
     from ipm.render.renderer import Renderer
 
-    options = FitOptions(search=SearchOptions(algorithm=algorithm, budget=budget,
+    options = FitOptions(search=SearchOptions(params=_search_params(params),
+                                              algorithm=algorithm, budget=budget,
                                               time_s=time_limit))
     image = read_image(photo)
     if invert:
@@ -110,6 +120,7 @@ def compare(
                                                 "models shipped with ipm)")] = None,
     budget: Annotated[int, typer.Option(help="objective evaluations of each search")] = 80,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = "LN_BOBYQA",
+    params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = "r_y",
     prior: Annotated[bool, typer.Option("--prior/--no-prior", help="MAP search around the "
                                         "nets' guess (see ipm fit)")] = True,
     invert: Annotated[bool, typer.Option("--invert", help="invert the photos first (backlit: "
@@ -126,13 +137,15 @@ def compare(
     from ipm.refine.fit import FitOptions
     from ipm.refine.search import SearchOptions
 
-    options = FitOptions(search=SearchOptions(algorithm=algorithm, budget=budget))
+    options = FitOptions(search=SearchOptions(params=_search_params(params),
+                                              algorithm=algorithm, budget=budget))
     listed = cmp.photos_in(photos, pixel_size, count)
     ensemble = Ensemble.load(models)
     _prepare_folder(out)
     settings = {"photos": str(photos), "count": len(listed), "pixel_size_mm": pixel_size,
                 "models": str(models) if models else "shipped", "budget": budget,
-                "algorithm": algorithm, "prior": prior, "invert": invert}
+                "algorithm": algorithm, "params": list(options.search.params), "prior": prior,
+                "invert": invert}
     saved = out / "settings.json"
     check_same_settings(saved, settings, "a comparison")
     write_text(saved, json.dumps(settings, indent=2) + "\n")

@@ -65,8 +65,9 @@ class SearchOptions:
     def __post_init__(self) -> None:
         bad = [p for p in self.params if p not in PAPER_INTERVALS or PAPER_INTERVALS[p].integer]
         if bad or not self.params:
-            raise UserError(f"cannot search {bad or 'no parameters'}: choose continuous "
-                            f"parameters of {', '.join(PAPER_INTERVALS)}")
+            allowed = [k for k, iv in PAPER_INTERVALS.items() if not iv.integer]
+            raise UserError(f"cannot search {bad or 'no parameters'}: choose among the "
+                            f"continuous parameters {', '.join(allowed)}")
         if self.algorithm not in ALGORITHMS:
             raise UserError(f"unknown algorithm {self.algorithm!r}; choose one of "
                             f"{', '.join(ALGORITHMS)}")

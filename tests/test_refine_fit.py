@@ -45,7 +45,7 @@ def photo(tmp_path_factory):
 def test_fit_refine_writes_everything_and_does_not_get_worse(models, photo, tmp_path):
     out = tmp_path / "fit"
     r = ipm("fit", photo, "--refine", "--models", models, "--pixel-size", 0.04, "--budget", 12,
-            "--out", out)
+            "--params", "r_y,alpha_ply", "--out", out)
     assert r.returncode == 0, r.stderr
     for name in ("params.json", "neural.png", "refined.png", "compare.png"):
         assert (out / name).is_file(), name
@@ -55,6 +55,15 @@ def test_fit_refine_writes_everything_and_does_not_get_worse(models, photo, tmp_
     assert result["loss"]["refined"] <= result["loss"]["neural"]
     assert result["settings"]["pixel_size_mm"] == 0.04 and result["evaluations"] <= 12
     assert neural.n == refined.n and neural.m == refined.m  # discrete parameters: the nets'
+    assert result["settings"]["search"]["params"] == ["r_y", "alpha_ply"]
+    assert neural.R_ply == refined.R_ply and neural.r_x == refined.r_x  # not searched
+
+
+def test_bad_search_params_one_line(models, photo, tmp_path):
+    r = ipm("fit", photo, "--refine", "--models", models, "--params", "r_y,n", "--out",
+            tmp_path / "fit")
+    assert r.returncode == 2 and "cannot search ['n']" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "fit").exists()
 
 
 def test_no_yarn_keeps_the_neural_result(models, tmp_path):

@@ -14,7 +14,6 @@ from ipm.frame import PIXEL_SIZE_MM
 from ipm.io import check_same_settings, check_writable_folder
 from ipm.progress import progress_bar
 
-
 _PARAMS_HELP = ("comma-separated continuous parameters to search (e.g. r_y,alpha_ply); the "
                 "others keep the nets' values")
 

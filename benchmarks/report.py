@@ -69,13 +69,13 @@ class BenchOptions:
     repeats: int = 5
     throughput_count: int = 40
     train_steps: int = 10
-    budget: int = 80
+    budget: int = SearchOptions.budget
 
     @classmethod
     def quick(cls) -> BenchOptions:
         """3.4 minutes on an idle 2-core machine (measured; target: about 10)."""
         return cls(count=40, refine_count=3, robust_count=10, repeats=3, throughput_count=8,
-                   train_steps=4, budget=40)
+                   train_steps=4, budget=20)
 
     def __post_init__(self) -> None:
         if self.count < 1 or not 0 <= self.refine_count <= self.count \

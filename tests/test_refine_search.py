@@ -19,7 +19,7 @@ def quadratic(p, seed):
     return float(np.sum(np.square(d))) + 1e-4 * (seed % 3)
 
 
-@pytest.mark.parametrize("algorithm", ["LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD"])
+@pytest.mark.parametrize("algorithm", ["LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "GN_DIRECT_L"])
 def test_finds_the_minimum_from_a_perturbed_start(algorithm):
     start = TRUTH.replace(alpha=TRUTH.alpha - 1.5, alpha_ply=TRUTH.alpha_ply + 2.0,
                           R_ply=TRUTH.R_ply + 0.1)

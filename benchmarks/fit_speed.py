@@ -1,0 +1,73 @@
+"""Wall time of ``ipm fit --refine`` for one photo with the default budget, as a user runs it.
+
+    python -m ipm.benchmarks.fit_speed --data data/test [--count 5]
+        [--out benchmarks/results/fit_speed.md]
+
+Method.  The command is run in a fresh process on each of the first ``--count`` photos of a
+dataset made with ``ipm generate`` (at the pixel size its manifest records), so every time
+includes what a user waits for: start-up, loading the nets, compiling the render kernels,
+the search and the re-scoring, and writing the renders.  The median is the figure; the
+target is under 2 minutes on 2 cores.  The load average before and after is printed: on a
+shared machine other processes slow everything down.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ipm.benchmarks.machine import markdown_header, publish
+from ipm.refine.search import SearchOptions
+
+COMMAND = ("python -m ipm.benchmarks.fit_speed --data data/test "
+           "--out benchmarks/results/fit_speed.md")
+
+
+def time_fit(photo: Path, pixel_size_mm: float, out: Path) -> float:
+    """Seconds of one ``ipm fit --refine`` in a fresh process (raises if it fails)."""
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "ipm", "fit", str(photo), "--refine",
+                    "--pixel-size", str(pixel_size_mm), "--out", str(out)],
+                   check=True, capture_output=True)
+    return time.perf_counter() - t0
+
+
+def load() -> str:
+    return " / ".join(f"{v:.1f}" for v in os.getloadavg())
+
+
+def main() -> None:
+    from ipm.nets.data import read_manifest
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", type=Path, required=True, help="a dataset made by ipm generate")
+    ap.add_argument("--count", type=int, default=5, help="photos, one fit each")
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    records = sorted(read_manifest(args.data), key=lambda r: r.image.name)[:args.count]
+    d = SearchOptions()
+    before = load()
+    rows = ["| photo | pixel size (mm) | wall time (s) |", "|---|---|---|"]
+    times = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, r in enumerate(records):
+            times.append(time_fit(r.image, r.pixel_size_mm, Path(tmp) / str(i)))
+            rows.append(f"| {r.image.name} | {r.pixel_size_mm:g} | {times[-1]:.1f} |")
+    rows += ["", f"**Median of {len(times)}: {np.median(times):.1f} s** (target: under 120 s). "
+             f"Search defaults: {', '.join(d.params)} by {d.algorithm}, budget {d.budget}, "
+             f"re-scored on {len(d.rescore_seeds)} more fiber seeds.", "",
+             f"Load average (1 / 5 / 15 min) before: {before}; after: {load()}."]
+    text = (markdown_header("ipm fit --refine wall time", COMMAND, "mitsuba", "torch")
+            + "\n" + "\n".join(rows) + "\n")
+    publish(text, args.out)
+
+
+if __name__ == "__main__":
+    main()

@@ -42,8 +42,9 @@ class SearchOptions:
     """params: continuous parameters to search.  By default only alpha_ply, with DIRECT-L
     (a global search of the box) and a budget of 30: on 30 held-out photos (``ipm compare
     data/test --count 30``) it lowered the MAE of alpha_ply by 40% (4.0% -> 2.4% of its
-    range; docs/compare-alpha_ply).  Searched jointly
-    with alpha_ply, R_ply moved away from the truth (the core profile trades R_ply against
+    range; docs/compare-alpha_ply); BOBYQA at the same budget on the same 30 left it at
+    4.0% -> 4.1% (docs/compare-alpha_ply-bobyqa): the autocorrelation has side minima in
+    alpha_ply that trap a local search.  Searched jointly with alpha_ply, R_ply moved away from the truth (the core profile trades R_ply against
     the ply radii), and r_y alone did too (4.0% -> 5.8%, docs/compare-r_y); the loss cannot
     see alpha (docs/identifiability.md).  The other parameters keep the nets' values.
 

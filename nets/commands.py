@@ -51,6 +51,9 @@ def train(
                                                           "photos in mm")] = None,
     real_invert: Annotated[bool, typer.Option("--real-invert", help="invert the --real "
                                               "photos (backlit: dark yarn on light)")] = False,
+    init: Annotated[Path | None, typer.Option(help="start each net from the trained net of "
+                                              "the same name in this folder (fine-tuning; "
+                                              "e.g. the shipped models)")] = None,
 ) -> None:
     """Train the nets of a preset on a synthetic dataset (resumable; torchrun for DDP)."""
     from ipm.nets.config import TrainConfig
@@ -59,7 +62,7 @@ def train(
     given = dict(encoder=encoder, width=width, input_scale=input_scale, epochs=epochs,
                  batch_size=batch_size, lr=lr, schedule=schedule, lambda_recon=lambda_recon,
                  lambda_latent=lambda_latent, steps_per_epoch=steps_per_epoch, seed=seed,
-                 device=device, workers=workers, real_pixel_size=real_pixel_size)
+                 device=device, workers=workers, real_pixel_size=real_pixel_size, init=init)
     options = {k: v for k, v in given.items() if v is not None}
     options.update(data=data, val=val, out=out, preset=preset, real=real,
                    real_invert=real_invert,

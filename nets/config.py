@@ -78,6 +78,7 @@ class TrainConfig:
     workers: int = 0
     real_pixel_size: float = PIXEL_SIZE_MM
     real_invert: bool = False
+    init: Path | None = None
 
     def __post_init__(self) -> None:
         if self.preset not in PRESETS:
@@ -111,7 +112,7 @@ class TrainConfig:
             raise UserError(f"unknown schedule {self.schedule!r}; one of {', '.join(SCHEDULES)}")
         if self.device.split(":")[0] not in ("cpu", "cuda", "mps"):
             raise UserError(f"unknown device {self.device!r} (cpu, cuda, cuda:N, mps)")
-        for name in ("data", "val", "real"):
+        for name in ("data", "val", "real", "init"):
             folder = getattr(self, name)
             if folder is not None and not Path(folder).is_dir():
                 raise UserError(f"--{name} {folder} is not a folder")

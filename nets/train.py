@@ -34,14 +34,22 @@ from ipm.nets.config import PRESETS, TrainConfig
 from ipm.nets.data import Crops, Frames
 from ipm.nets.model import FORMAT, NetConfig, YarnNet, crop_size, frame_size
 from ipm.nets.objective import Objective
-from ipm.nets.store import CHECKPOINT, CONFIG, load_checkpoint, read_json, save_checkpoint, save_net
+from ipm.nets.store import (
+    CHECKPOINT,
+    CONFIG,
+    load_checkpoint,
+    load_net,
+    read_json,
+    save_checkpoint,
+    save_net,
+)
 from ipm.nets.tasks import TASKS, Task
 from ipm.params import PAPER_INTERVALS
 
 ENSEMBLE = "ensemble.json"
 #: Options that may change when a run is resumed; any other change needs a new --out.
 RESUMABLE = {"epochs", "workers", "device", "out", "nets", "steps_per_epoch", "data", "val",
-             "real"}
+             "real", "init"}
 
 
 @dataclass(frozen=True)
@@ -150,6 +158,21 @@ def _real_batches(real: Crops, batch_size: int, dist: Dist, seed: int) -> Iterat
         epoch += 1
 
 
+def warm_start(net: YarnNet, folder: Path) -> None:
+    """Start ``net`` from the trained weights in ``folder`` (``--init``: fine-tuning, e.g. a
+    shipped net on more epochs or other data); its encoder, width, input scale and outputs
+    must be the same.  A decoder the folder's net lacks starts from scratch."""
+    trained, _ = load_net(folder)
+    mine, theirs = net.config.to_dict(), trained.config.to_dict()
+    differ = [k for k in mine if k != "decoder" and mine[k] != theirs.get(k)]
+    if differ:
+        theirs_text = ", ".join(f"{k} {theirs.get(k)}" for k in differ)
+        mine_text = ", ".join(f"{k} {mine[k]}" for k in differ)
+        raise UserError(f"--init {folder} is another net ({theirs_text}); this run trains "
+                        f"{mine_text}")
+    net.load_state_dict(trained.state_dict(), strict=False)
+
+
 def train_net(name: str, cfg: TrainConfig, train_frames: Frames, val_frames: Frames,
               real_frames: Frames | None, dist: Dist, log: Callable[[str], None]) -> None:
     task, preset = TASKS[name], PRESETS[cfg.preset]
@@ -181,6 +204,10 @@ def train_net(name: str, cfg: TrainConfig, train_frames: Frames, val_frames: Fra
                             "use another --out")
         if dist.main:
             log(f"[{name}] resuming after epoch {state['epoch']}")
+    elif cfg.init is not None:
+        warm_start(net, cfg.init / name)
+        if dist.main:
+            log(f"[{name}] starting from the weights of {cfg.init / name}")
     if state["epoch"] >= cfg.epochs:
         if dist.main:
             log(f"[{name}] done ({state['epoch']} epochs; best {state['best_epoch']})")

@@ -44,8 +44,9 @@ class SearchOptions:
     data/test --count 30``) it lowered the MAE of alpha_ply by 40% (4.0% -> 2.4% of its
     range; docs/compare-alpha_ply); BOBYQA at the same budget on the same 30 left it at
     4.0% -> 4.1% (docs/compare-alpha_ply-bobyqa): the autocorrelation has side minima in
-    alpha_ply that trap a local search.  Searched jointly with alpha_ply, R_ply moved away from the truth (the core profile trades R_ply against
-    the ply radii), and r_y alone did too (4.0% -> 5.8%, docs/compare-r_y); the loss cannot
+    alpha_ply that trap a local search.  Searched jointly with alpha_ply, R_ply moved away
+    from the truth (the core profile trades R_ply against the ply radii), and r_y alone did
+    too (4.0% -> 5.8%, docs/compare-r_y); the loss cannot
     see alpha (docs/identifiability.md).  The other parameters keep the nets' values.
 
     algorithm: an NLopt derivative-free algorithm.  budget: objective evaluations of the

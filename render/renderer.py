@@ -51,19 +51,28 @@ def world_curves(fibers: FiberSet, to_world: np.ndarray) -> tuple[np.ndarray, np
 
 
 @contextlib.contextmanager
-def _compile_lock():
-    """Serialise the first render (kernel compilation) of a scale across processes.
+def _first_render():
+    """Run the first render of a scale in a process on one thread, under a file lock.
 
-    Dr.Jit caches compiled kernels on disk; when two processes compiled the same kernels at
-    the same moment we saw one of them render every image with other sample values (a valid
-    image, but not the same bytes), so the compile runs under an exclusive file lock."""
+    With Dr.Jit's default two threads here, about one process in seven (more under load)
+    rendered every image with other sample values than the others (valid images, other
+    noise; two distinct outcomes, each reproducible), whatever the kernel cache, the curve
+    buffers' BVH build or the scene: the first render of a process decides it.  With that
+    first render on one thread, 40 of 40 concurrent processes agreed, and the renders after
+    it use all threads again (``benchmarks/determinism.py`` measures this).  Two processes
+    compiling the same kernels at once also disagreed more often, hence the lock."""
     import fcntl
 
+    import drjit as dr
+
+    threads = dr.thread_count()
     with open(Path(tempfile.gettempdir(), "ipm-drjit-compile.lock"), "a") as f:
         fcntl.flock(f, fcntl.LOCK_EX)
+        dr.set_thread_count(1)
         try:
             yield
         finally:
+            dr.set_thread_count(threads)
             fcntl.flock(f, fcntl.LOCK_UN)
 
 
@@ -135,7 +144,7 @@ class Renderer:
         if scale in self._compiled:
             image = self.mi.render(scene, spp=spp, seed=render_seed)
         else:
-            with _compile_lock():
+            with _first_render():
                 image = self.mi.render(scene, spp=spp, seed=render_seed)
             self._compiled.add(scale)
         return np.array(image, dtype=np.float32)[..., :3]

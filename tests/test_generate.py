@@ -102,13 +102,9 @@ def test_kill_and_rerun_gives_exactly_n_samples_with_the_same_bytes(tmp_path):
 
 @pytest.mark.slow
 def test_samples_are_the_same_bytes_across_processes(tmp_path):
-    """Known intermittent failure (1 run in 4 to 8 here, more often while other jobs load
-    the machine): a process sometimes renders every image with other sample values than
-    another process does (valid images, other noise).  In one process the same settings
-    always give the same bytes (tests/test_render.py).  Not the Python hash seed, the thread
-    count, the sample order, Dr.Jit's shared disk cache (a private HOME still fails) nor
-    local scatter-reductions; serialising first compiles across processes made concurrent
-    starts agree more often.  Open."""
+    """Workers of one run and of another agree byte for byte.  Before the first render of a
+    process ran on one thread (ipm.render.renderer._first_render), about one process in
+    seven rendered every image with other sample values (benchmarks/determinism.py)."""
     opts = ("--count", 4, "--seed", 3, *TINY)
     assert ipm("generate", "--out", tmp_path / "a", "--workers", 2, *opts).returncode == 0
     assert ipm("generate", "--out", tmp_path / "b", "--workers", 1, *opts).returncode == 0

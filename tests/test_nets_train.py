@@ -135,6 +135,30 @@ def test_resume_continues_and_refuses_other_options(data, tmp_path):
         train(cfg.replace(lr=0.5), log=lambda line: None)
 
 
+def test_init_starts_from_trained_weights(trained, data, tmp_path):
+    """--init: the first epoch starts from the given run's net (its validation error at
+    step 0 is that net's), and a net of another configuration is refused in one line."""
+    from ipm.nets.store import load_net
+    from ipm.nets.train import train, warm_start
+
+    source = trained["reg"] / "raw"
+    net, _ = load_net(source)
+    cfg = TrainConfig(data=data / "train", val=data / "val", out=tmp_path / "ft",
+                      preset="reg", nets=("raw",), init=trained["reg"], **TINY)
+    lines = []
+    train(cfg.replace(lr=1e-12), log=lines.append)  # a rate too small to move the weights
+    assert any(f"starting from the weights of {source}" in line for line in lines)
+    tuned, _ = load_net(tmp_path / "ft" / "raw")
+    # the weights (not BatchNorm's running statistics, which a training step updates)
+    for (k, a), b in zip(net.named_parameters(), tuned.parameters(), strict=True):
+        assert torch.allclose(a, b, atol=1e-6), k
+    from ipm.nets.model import NetConfig, YarnNet
+
+    wider = YarnNet(NetConfig("raw", "resnet18", 0.25, SCALE))
+    with pytest.raises(UserError, match="another net .*width 0.125.*width 0.25"):
+        warm_start(wider, source)
+
+
 @pytest.mark.slow
 def test_resume_after_kill(data, tmp_path):
     """SIGKILL mid-run leaves a consistent checkpoint that the next run resumes from."""

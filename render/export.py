@@ -11,11 +11,11 @@ from xml.sax.saxutils import quoteattr
 from ipm.generator import generate
 from ipm.io import write_text
 from ipm.params import YarnParams
-from ipm.render.scene import DEFAULT_OPTIONS, SceneOptions, scene_dict
+from ipm.render.scene import DEFAULT_OPTIONS, SAMPLERS, SceneOptions, scene_dict
 from ipm.render.variant import mitsuba
 
 #: The XML element of each plugin type used by :func:`scene_dict`.
-_TAGS = {"path": "integrator", "orthographic": "sensor", "independent": "sampler",
+_TAGS = {"path": "integrator", "orthographic": "sensor", **dict.fromkeys(SAMPLERS, "sampler"),
          "hdrfilm": "film", "box": "rfilter", "linearcurve": "shape", "rectangle": "shape",
          "principled": "bsdf", "diffuse": "bsdf", "area": "emitter", "constant": "emitter"}
 

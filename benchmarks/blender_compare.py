@@ -1,0 +1,176 @@
+"""ipm's renders beside Blender Cycles, the paper's renderer, on this machine: time and noise
+of the same yarns in the same scene at 800x240 (scale 0.4), both on all cores.
+
+Cycles runs in Blender's own Python (``python3 -m venv /opt/bpyenv && /opt/bpyenv/bin/pip
+install bpy``; pass its interpreter as ``--blender-python``), scene in
+:mod:`ipm.benchmarks.cycles_scene`, twice: as the paper rendered (Principled Hair BSDF,
+Cycles' default 12 bounces) and with ipm's material and path depth (principled BSDF, one
+indirect bounce), so that the renderer's share of the speed-up shows apart from the
+material's.  ipm renders its scene as shipped.
+
+Noise, two ways.  Noise level: ``std(a - b) / sqrt(2)`` of two renders with other sampler
+seeds after a high-pass (image minus its 3x3 box blur), sRGB values in [0, 1], no
+quantisation.  Detail SNR: the fiber detail both renders share, ``sqrt(cov(hp(a),
+hp(b)))``, over that noise; it does not depend on how bright or contrasted each renderer
+makes the yarn.  The verdict gives ipm's fewest samples per pixel that match Cycles at 64
+samples by either measure.
+
+    python -m ipm.benchmarks.blender_compare --blender-python /opt/bpyenv/bin/python
+        [--yarns 2] [--figure docs/figures/cycles_vs_ipm.png]
+        [--out benchmarks/results/blender_compare.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ipm.benchmarks.machine import markdown_header, publish
+from ipm.generator import generate
+from ipm.photo import linear_to_srgb, write_png
+from ipm.prior import GuidedPrior
+from ipm.render import scene as S
+from ipm.render.renderer import Renderer, world_curves
+
+COMMAND = ("python -m ipm.benchmarks.blender_compare --blender-python /opt/bpyenv/bin/python "
+           "--figure docs/figures/cycles_vs_ipm.png --out benchmarks/results/blender_compare.md")
+SCALE = 0.4
+CYCLES_SAMPLES = 64
+IPM_SPP = (4, 8, 16, 32, 64)
+SEEDS = (1, 2)
+IPM = "ipm (Mitsuba llvm_ad_rgb)"
+#: Cycles configurations: (fiber material, bounces; None = Cycles' default of 12).
+CYCLES = {"Cycles, the paper's Principled Hair BSDF, default bounces": ("hair", None),
+          "Cycles, ipm's principled BSDF, 1 bounce (ipm's path depth 3)": ("principled", 1)}
+
+
+def highpass(img: np.ndarray) -> np.ndarray:
+    x = img.astype(np.float64)
+    pad = np.pad(x, ((1, 1), (1, 1), (0, 0)), mode="edge")
+    blur = sum(pad[i:i + x.shape[0], j:j + x.shape[1]] for i in range(3) for j in range(3)) / 9
+    return x - blur
+
+
+def detail_snr(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """(detail SNR, noise) of two renders of the same yarn with other sampler seeds."""
+    ha, hb = highpass(a), highpass(b)
+    detail = np.sqrt(max(float(np.mean((ha - ha.mean()) * (hb - hb.mean()))), 0.0))
+    noise = float(np.std(ha - hb) / np.sqrt(2))
+    return detail / noise, noise
+
+
+def scene_npz(path: Path, params, seed: int) -> None:
+    """The yarn and THE scene's numbers, for :mod:`ipm.benchmarks.cycles_scene`."""
+    fibers = generate(params, seed)
+    points, _ = world_curves(fibers, S.yarn_to_world())
+    opts = S.DEFAULT_OPTIONS
+    width, height = S.frame_size(SCALE)
+    np.savez(path, points=points[:, :3], offsets=fibers.offsets, radius=fibers.round_radii(),
+             color=np.array(params.color), frame=np.array([width, height]),
+             frame_mm=width * S.pixel_size_mm(SCALE), camera_distance=S.CAMERA_DISTANCE_MM,
+             soft_boxes=np.array([[-200.0, 50.0, 200.0, 150.0, opts.key_light],
+                                  [200.0, -30.0, 200.0, 150.0, 0.6 * opts.key_light]]),
+             room_light=opts.room_light, backdrop=opts.backdrop, roughness=opts.roughness,
+             sheen=opts.sheen,
+             backdrop_depth=S.BACKDROP_DEPTH_MM)
+
+
+def cycles(blender_python: str, npz: Path, config: tuple[str, int | None], tmp: Path,
+           threads: int) -> tuple[list[float], list[np.ndarray]]:
+    material, bounces = config
+    prefix = tmp / f"{npz.stem}-{material}"
+    extra = ["--bounces", str(bounces)] if bounces is not None else []
+    script = Path(__file__).with_name("cycles_scene.py")
+    r = subprocess.run([blender_python, str(script), str(npz), str(prefix),
+                        "--samples", str(CYCLES_SAMPLES), "--seeds", *map(str, SEEDS),
+                        "--threads", str(threads), "--material", material, *extra],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"Blender failed (exit {r.returncode}): {r.stderr.strip()[-500:]}")
+    rows = [json.loads(line) for line in r.stdout.splitlines() if line.startswith("{")]
+    return ([row["seconds"] for row in rows],
+            [np.load(f"{prefix}_s{s}.npy") for s in SEEDS])
+
+
+class Rows(dict):
+    """name -> (times, SNRs, noises) over the yarns."""
+
+    def add(self, name: str, seconds: list[float], images: list[np.ndarray]) -> None:
+        snr, noise = detail_snr(*images)
+        row = self.setdefault(name, ([], [], []))
+        row[0].extend(seconds), row[1].append(snr), row[2].append(noise)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--blender-python", required=True,
+                    help="a Python with bpy installed (Blender as a module)")
+    ap.add_argument("--yarns", type=int, default=2, help="first draws of the guided prior")
+    ap.add_argument("--figure", default=None, help="PNG of the first yarn's renders")
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    threads = os.cpu_count() or 1
+    yarns = GuidedPrior().sample_many(args.yarns, seed=0)
+    renderer = Renderer()
+    renderer.render(yarns[0], 0, SCALE, 1)  # kernels compile once per process and scale
+    rows, shown = Rows(), []
+    with tempfile.TemporaryDirectory(prefix="ipm-blender-") as tmp:
+        for k, p in enumerate(yarns):
+            npz = Path(tmp) / f"yarn{k}.npz"
+            scene_npz(npz, p, k)
+            for label, config in CYCLES.items():
+                seconds, images = cycles(args.blender_python, npz, config, Path(tmp), threads)
+                rows.add(label, seconds, images)
+                shown += [(f"{label}, {CYCLES_SAMPLES} spp", images[0])] if k == 0 else []
+            for spp in IPM_SPP:
+                images, seconds = [], []
+                for s in SEEDS:
+                    t0 = time.perf_counter()
+                    img = renderer.render(p, k, SCALE, spp, render_seed=s)
+                    seconds.append(time.perf_counter() - t0)
+                    images.append(linear_to_srgb(img))
+                rows.add(f"{IPM} {spp}", seconds, images)
+                shown += [(f"{IPM}, {spp} spp", images[0])] if k == 0 and spp in (8, 64) else []
+    if args.figure:
+        write_png(args.figure, np.round(np.clip(np.concatenate([im for _, im in shown]), 0, 1)
+                                        * 255).astype(np.uint8))
+    table = ["| renderer | samples per pixel | median time (s) | detail SNR | noise (sRGB) |",
+             "|---|---|---|---|---|"]
+    for name, (seconds, snrs, noises) in rows.items():
+        label, spp = (name, CYCLES_SAMPLES) if name in CYCLES else name.rsplit(" ", 1)
+        table.append(f"| {label} | {spp} | {np.median(seconds):.2f} | {np.mean(snrs):.2f} | "
+                     f"{np.mean(noises):.4f} |")
+    verdicts = []
+    for label in CYCLES:
+        t_c, snr_c = float(np.median(rows[label][0])), float(np.mean(rows[label][1]))
+        noise_c = float(np.mean(rows[label][2]))
+        by_snr = next((spp for spp in IPM_SPP if np.mean(rows[f"{IPM} {spp}"][1]) >= snr_c),
+                      None)
+        by_noise = next((spp for spp in IPM_SPP
+                         if np.mean(rows[f"{IPM} {spp}"][2]) <= noise_c), None)
+        for what, spp in (("detail SNR", by_snr), ("noise level", by_noise)):
+            if spp is None:
+                verdicts.append(f"- {label} ({t_c:.1f} s): no sample count of ipm's grid "
+                                f"reaches its {what}.")
+                continue
+            t = float(np.median(rows[f"{IPM} {spp}"][0]))
+            verdicts.append(f"- {label} ({t_c:.1f} s), equal {what}: ipm at {spp} spp, "
+                            f"{t:.2f} s, **{t_c / t:.0f}x** faster.")
+    text = (markdown_header("ipm beside Blender Cycles", COMMAND, "mitsuba", "drjit") + "\n"
+            + f"{len(yarns)} yarns (the guided prior's first draws, seed 0), 800x240 px "
+            f"(0.025 mm per pixel), {threads} threads each; times per render (medians) include "
+            f"the scene update and BVH build; SNR and noise averaged over the yarns.\n\n"
+            + "\n".join(table) + "\n\nipm at the fewest samples per pixel that match Cycles "
+            f"at {CYCLES_SAMPLES}:\n\n" + "\n".join(verdicts) + "\n")
+    publish(text, args.out)
+
+
+if __name__ == "__main__":
+    main()

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ipm.benchmarks.machine import markdown_header, publish
+from ipm.benchmarks.render_speed import highpass
 from ipm.generator import generate
 from ipm.photo import linear_to_srgb, write_png
 from ipm.prior import GuidedPrior
@@ -49,13 +50,6 @@ IPM = "ipm (Mitsuba llvm_ad_rgb)"
 #: Cycles configurations: (fiber material, bounces; None = Cycles' default of 12).
 CYCLES = {"Cycles, the paper's Principled Hair BSDF, default bounces": ("hair", None),
           "Cycles, ipm's principled BSDF, 1 bounce (ipm's path depth 3)": ("principled", 1)}
-
-
-def highpass(img: np.ndarray) -> np.ndarray:
-    x = img.astype(np.float64)
-    pad = np.pad(x, ((1, 1), (1, 1), (0, 0)), mode="edge")
-    blur = sum(pad[i:i + x.shape[0], j:j + x.shape[1]] for i in range(3) for j in range(3)) / 9
-    return x - blur
 
 
 def detail_snr(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:

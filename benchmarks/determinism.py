@@ -1,8 +1,8 @@
 """Do separate processes render the same bytes?  Pairs of processes start at the same moment
 (as `ipm generate`'s workers do), each renders the same two yarns with the same seeds, and
-the digests of their images are counted.  Run with the renderer as shipped (its first
-render of a scale on one thread, :func:`ipm.render.renderer._first_render`) and with that
-first render on Dr.Jit's default thread count instead, side by side.
+the digests of their images are counted.  Run with the renderer as shipped (the scene
+loaded with ``mi.load_dict(..., parallel=False, optimize=False)``, its shapes in the dict's
+order) and with Mitsuba's default loading, side by side.
 
     python -m ipm.benchmarks.determinism [--pairs 10] [--out benchmarks/results/determinism.md]
 """
@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import contextlib
 import hashlib
 import subprocess
 import sys
@@ -19,18 +18,19 @@ import sys
 from ipm.benchmarks.machine import markdown_header, publish
 
 COMMAND = "python -m ipm.benchmarks.determinism --out benchmarks/results/determinism.md"
-MODES = {"shipped": "one thread for the first render (as shipped)",
-         "all-threads": "all threads from the first render on"}
+MODES = {"shipped": "shapes in the dict's order (as shipped)",
+         "default": "Mitsuba's default (parallel, merging similar objects)"}
 
 
 def render_digests(mode: str) -> str:
     """The digests of two renders in this process (what a child prints)."""
     from ipm.prior import GuidedPrior
-    from ipm.render import renderer
+    from ipm.render.renderer import Renderer
 
-    if mode == "all-threads":
-        renderer._first_render = contextlib.nullcontext
-    r = renderer.Renderer()
+    r = Renderer()
+    if mode == "default":
+        load_dict = r.mi.load_dict
+        r.mi.load_dict = lambda d, **ours: load_dict(d)
     return " ".join(hashlib.md5(r.render(p, k, 0.25, 8, render_seed=3).tobytes()).hexdigest()[:12]
                     for k, p in enumerate(GuidedPrior().sample_many(2, seed=0)))
 
@@ -58,12 +58,11 @@ def main() -> None:
         print(render_digests(args.child))
         return
     results = {mode: run_pairs(mode, args.pairs) for mode in MODES}
-    reference = results["shipped"].most_common(1)[0][0]
-    rows = ["| first render | processes | same images as the most common outcome | "
+    rows = ["| scene loading | processes | processes with the row's most common images | "
             "distinct outcomes |", "|---|---|---|---|"]
     for mode, counts in results.items():
-        total = sum(counts.values())
-        rows.append(f"| {MODES[mode]} | {total} | {counts[reference]} | {len(counts)} |")
+        rows.append(f"| {MODES[mode]} | {sum(counts.values())} | "
+                    f"{counts.most_common(1)[0][1]} | {len(counts)} |")
     text = (markdown_header("Same bytes across processes", COMMAND, "mitsuba", "drjit") + "\n"
             + "Two yarns of the guided prior at scale 0.25, 8 spp, render seed 3; "
             f"{args.pairs} pairs of processes started together per row.\n\n"

@@ -1,7 +1,6 @@
 """Render speed, noise and fiber detail of THE scene (llvm_ad_rgb, CPU), and ``ipm generate``
-throughput on all cores, beside the paper's Blender renders (1-4 min per image; a Cycles
-render of comparable yarns at 800x240, 64 samples, on 2 cores of a machine like ours:
-median 43 s).
+throughput on all cores.  The comparison with the paper's renderer, Blender Cycles, on the
+same yarns and scene is :mod:`ipm.benchmarks.blender_compare`.
 
 Yarns: the first 4 draws of the guided prior (seed 0), so that flyaway-heavy and thin
 yarns are both in.  Times are medians over repeats after one warm-up render per scale
@@ -31,7 +30,6 @@ from ipm.render.dataset import DEFAULT_SCALE, DEFAULT_SPP, GenerateOptions, gene
 from ipm.render.renderer import Renderer, to_srgb8
 
 COMMAND = "python -m ipm.benchmarks.render_speed --out benchmarks/results/render_speed.md"
-PAPER_BLENDER_S = 43.0
 YARNS = GuidedPrior().sample_many(4, seed=0)
 GRID = [(0.25, 4), (0.25, 8), (0.25, 16), (0.4, 4), (0.4, 8), (0.4, 16), (0.5, 4), (0.5, 8),
         (0.5, 16), (1.0, 4), (1.0, 8)]
@@ -106,19 +104,6 @@ def main() -> None:
         mark = " **(default)**" if (scale, spp) == (DEFAULT_SCALE, DEFAULT_SPP) else ""
         out.append(f"| {scale}{mark} | {w}x{h} | {spp} | {t:.2f} | {noise:.1f} | {detail:.1f} | "
                    f"{snr:.1f} |")
-
-    t64 = median_time(r, 0.4, 64, 3)
-    noise64, detail64, snr64 = noise_and_detail(r, 0.4, 64)
-    t_eq = median_time(r, 0.4, 16, args.repeats)
-    out += ["", "## Beside the paper's Blender renders (800x240, 2 cores)", "",
-            "| renderer | spp | median time (s) | noise (8-bit) | speed-up |",
-            "|---|---|---|---|---|",
-            f"| Blender Cycles (paper setup, measured by the issue) | 64 | {PAPER_BLENDER_S:.0f} | "
-            "- | 1x |",
-            f"| ipm (Mitsuba llvm_ad_rgb) | 64 | {t64:.2f} | {noise64:.1f} | "
-            f"{PAPER_BLENDER_S / t64:.0f}x |",
-            f"| ipm (Mitsuba llvm_ad_rgb) | 16 | {t_eq:.2f} | see grid | "
-            f"{PAPER_BLENDER_S / t_eq:.0f}x |"]
 
     out += ["", f"## `ipm generate` at the default scale {DEFAULT_SCALE} and {DEFAULT_SPP} spp "
             f"({args.generate_count} images)", "",

@@ -9,7 +9,6 @@ through ``mi.traverse``.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import tempfile
 from dataclasses import asdict
@@ -50,32 +49,6 @@ def world_curves(fibers: FiberSet, to_world: np.ndarray) -> tuple[np.ndarray, np
     return points, np.flatnonzero(~last).astype(np.uint32)
 
 
-@contextlib.contextmanager
-def _first_render():
-    """Run the first render of a scale in a process on one thread, under a file lock.
-
-    With Dr.Jit's default two threads here, about one process in seven (more under load)
-    rendered every image with other sample values than the others (valid images, other
-    noise; two distinct outcomes, each reproducible), whatever the kernel cache, the curve
-    buffers' BVH build or the scene: the first render of a process decides it.  With that
-    first render on one thread, 40 of 40 concurrent processes agreed, and the renders after
-    it use all threads again (``benchmarks/determinism.py`` measures this).  Two processes
-    compiling the same kernels at once also disagreed more often, hence the lock."""
-    import fcntl
-
-    import drjit as dr
-
-    threads = dr.thread_count()
-    with open(Path(tempfile.gettempdir(), "ipm-drjit-compile.lock"), "a") as f:
-        fcntl.flock(f, fcntl.LOCK_EX)
-        dr.set_thread_count(1)
-        try:
-            yield
-        finally:
-            dr.set_thread_count(threads)
-            fcntl.flock(f, fcntl.LOCK_UN)
-
-
 class Renderer:
     """Renders yarns in THE scene; one per process (kernels are compiled once per scale).
 
@@ -90,7 +63,6 @@ class Renderer:
         self.mi = mitsuba(variant)
         self.options = options
         self._scenes: dict[float, tuple[object, object]] = {}
-        self._compiled: set[float] = set()
         if threads is not None:
             import drjit as dr
 
@@ -112,8 +84,13 @@ class Renderer:
         with tempfile.TemporaryDirectory(prefix="ipm-scene-") as tmp:
             curves = Path(tmp, "curves.txt")
             curves.write_text(curve_text)
+            # optimize=False, parallel=False: the shapes in the dict's order.  Mitsuba's
+            # merging of similar objects put the two soft boxes in an order that changed from
+            # process to process, and with them swapped the emitter sampling gives the same
+            # random numbers to the other lamp: about one process in eight rendered every
+            # image with other noise (benchmarks/determinism.py)
             return self.mi.load_dict(scene_dict(scale, 1, str(curves), color, self.options,
-                                                to_world))
+                                                to_world), parallel=False, optimize=False)
 
     def _scene(self, scale: float) -> tuple[object, object]:
         if scale not in self._scenes:
@@ -141,12 +118,7 @@ class Renderer:
             params["yarn.control_point_count"] = len(points)
             params["yarn.bsdf.base_color.value"] = self.mi.Color3f(*color)
             params.update()
-        if scale in self._compiled:
-            image = self.mi.render(scene, spp=spp, seed=render_seed)
-        else:
-            with _first_render():
-                image = self.mi.render(scene, spp=spp, seed=render_seed)
-            self._compiled.add(scale)
+        image = self.mi.render(scene, spp=spp, seed=render_seed)
         return np.array(image, dtype=np.float32)[..., :3]
 
     def render(self, params: YarnParams, seed: int, scale: float, spp: int,

@@ -126,6 +126,13 @@ def test_same_settings_same_image(renderer):
     assert abs(a.mean() - c.mean()) < 0.05 * a.mean()  # another sampler seed: same statistics
 
 
+def test_scene_shapes_keep_the_dict_order(renderer):
+    """The soft boxes' order decides which lamp the emitter sampling gives each random
+    number to; Mitsuba's default loading ordered them differently from process to process."""
+    scene, _ = renderer._scene(0.1)
+    assert [s.id() for s in scene.shapes()] == ["yarn", "backdrop", "key_left", "key_right"]
+
+
 def test_stratified_samples_are_cleaner_than_independent(renderer):
     """The scene's multijitter sampler: less pixel noise than independent samples at the
     same count (fiber coverage of a pixel is estimated better), same mean image."""

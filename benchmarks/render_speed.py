@@ -21,6 +21,7 @@ import os
 import resource
 import tempfile
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -28,11 +29,13 @@ from ipm.benchmarks.machine import markdown_header, publish
 from ipm.prior import GuidedPrior
 from ipm.render.dataset import DEFAULT_SCALE, DEFAULT_SPP, GenerateOptions, generate_dataset
 from ipm.render.renderer import Renderer, to_srgb8
+from ipm.render.scene import DEFAULT_OPTIONS
 
 COMMAND = "python -m ipm.benchmarks.render_speed --out benchmarks/results/render_speed.md"
 YARNS = GuidedPrior().sample_many(4, seed=0)
-GRID = [(0.25, 4), (0.25, 8), (0.25, 16), (0.4, 4), (0.4, 8), (0.4, 16), (0.5, 4), (0.5, 8),
-        (0.5, 16), (1.0, 4), (1.0, 8)]
+GRID = [(0.25, 4), (0.25, 6), (0.25, 8), (0.25, 16), (0.4, 4), (0.4, 8), (0.4, 16), (0.5, 4),
+        (0.5, 8), (0.5, 16), (1.0, 4), (1.0, 8)]
+SAMPLER_GRID = [(0.25, 6), (0.25, 8), (0.4, 16), (0.4, 64)]
 
 
 def median_time(renderer: Renderer, scale: float, spp: int, repeats: int) -> float:
@@ -104,6 +107,17 @@ def main() -> None:
         mark = " **(default)**" if (scale, spp) == (DEFAULT_SCALE, DEFAULT_SPP) else ""
         out.append(f"| {scale}{mark} | {w}x{h} | {spp} | {t:.2f} | {noise:.1f} | {detail:.1f} | "
                    f"{snr:.1f} |")
+
+    out += ["", "## The scene's stratified samples (multijitter) beside independent ones", "",
+            "| sampler | scale | spp | median time (s) | noise (8-bit levels) | detail SNR |",
+            "|---|---|---|---|---|---|"]
+    for sampler in ("multijitter", "independent"):
+        rs = r if sampler == DEFAULT_OPTIONS.sampler else \
+            Renderer(options=replace(DEFAULT_OPTIONS, sampler=sampler))
+        for scale, spp in SAMPLER_GRID:
+            t = median_time(rs, scale, spp, args.repeats)
+            noise, _, snr = noise_and_detail(rs, scale, spp)
+            out.append(f"| {sampler} | {scale} | {spp} | {t:.2f} | {noise:.1f} | {snr:.1f} |")
 
     out += ["", f"## `ipm generate` at the default scale {DEFAULT_SCALE} and {DEFAULT_SPP} spp "
             f"({args.generate_count} images)", "",

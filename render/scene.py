@@ -55,8 +55,11 @@ from ipm.frame import FRAME_HEIGHT_PX, FRAME_WIDTH_PX, PIXEL_SIZE_MM
 #: Generator frame (x, y, z) -> world frame: the yarn axis z becomes the image horizontal.
 GENERATOR_TO_WORLD = np.array([[0, 0, 1], [1, 0, 0], [0, 1, 0]], dtype=np.float64)
 BACKDROP_DEPTH_MM = 50.0
-SAMPLERS = ("multijitter", "independent", "stratified", "ldsampler")
 CAMERA_DISTANCE_MM = 300.0
+SAMPLERS = ("multijitter", "independent", "stratified", "ldsampler")
+#: The soft boxes: name, centre (mm), side (mm), radiance as a fraction of ``key_light``.
+SOFT_BOXES = (("key_left", (-200.0, 50.0, 200.0), 150.0, 1.0),
+              ("key_right", (200.0, -30.0, 200.0), 150.0, 0.6))
 
 
 @dataclass(frozen=True)
@@ -164,7 +167,7 @@ def scene_dict(scale: float, spp: int, curves: str, color: tuple[float, float, f
                      "to_world": T().translate([0, 0, -BACKDROP_DEPTH_MM]) @ T().scale(200),
                      "bsdf": {"type": "diffuse",
                               "reflectance": {"type": "rgb", "value": [opts.backdrop] * 3}}},
-        "key_left": _soft_box((-200.0, 50.0, 200.0), 150.0, opts.key_light),
-        "key_right": _soft_box((200.0, -30.0, 200.0), 150.0, 0.6 * opts.key_light),
+        **{name: _soft_box(centre, side, share * opts.key_light)
+           for name, centre, side, share in SOFT_BOXES},
         "room": {"type": "constant", "radiance": {"type": "rgb", "value": opts.room_light}},
     }

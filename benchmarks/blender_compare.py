@@ -44,7 +44,7 @@ COMMAND = ("python -m ipm.benchmarks.blender_compare --blender-python /opt/bpyen
            "--figure docs/figures/cycles_vs_ipm.png --out benchmarks/results/blender_compare.md")
 SCALE = 0.4
 CYCLES_SAMPLES = 64
-IPM_SPP = (4, 8, 16, 32, 64)
+IPM_SPP = (4, 8, 16, 36, 64)  # sample counts the multijitter sampler takes as they are
 SEEDS = (1, 2)
 IPM = "ipm (Mitsuba llvm_ad_rgb)"
 #: Cycles configurations: (fiber material, bounces; None = Cycles' default of 12).

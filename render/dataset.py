@@ -46,9 +46,9 @@ IMAGES = "images"
 
 #: Defaults chosen by measurement (benchmarks/README.md, "Render speed"): scale 0.25 (500 x
 #: 150 px) is the input scale of the default nets, so their data needs no resampling, and
-#: 2000 images took 24 min on 2 cores; 6 spp of the scene's stratified sampler are as clean
-#: as the 8 independent ones the shipped nets were trained on (:mod:`ipm.render.scene`), where
-#: the render noise falls below the fiber contrast.  The thinnest fibers are 0.3 px there:
+#: 2000 images took 16 min on 2 cores; 6 spp of the scene's stratified sampler are as clean
+#: as the 8 independent ones the shipped nets were first trained on (:mod:`ipm.render.scene`),
+#: and bring the render noise to the fiber contrast.  The thinnest fibers are 0.3 px there:
 #: scale 0.5 keeps them at 0.6 px, for nets trained at a higher input scale (``--scale 0.5``).
 DEFAULT_SCALE = 0.25
 DEFAULT_SPP = 6

@@ -26,11 +26,10 @@ y -> world z: a cyclic permutation, so a rotation).
   reconstruction filter cost 2.5x the render time here (its splats are scattered adds).
   Sample positions are stratified (Mitsuba's ``multijitter`` sampler): a fiber thinner than
   a pixel makes coverage the main noise, and stratified positions estimate it better than
-  independent ones.  Measured at 800 x 240 px on the first guided-prior yarn: 64 spp gives
-  an sRGB noise of 0.0059 against 0.0097 with ``independent`` in the same time; at the
-  dataset's scale 0.25, 6 spp (0.051) are as clean as the 8 independent spp the shipped nets
-  were trained on (0.055), in 14 % less time (``benchmarks/blender_compare.py`` measures
-  noise).
+  independent ones.  Measured (``python -m ipm.benchmarks.render_speed``): at 800 x 240 px
+  and 64 spp a noise of 2.6 against 3.9 8-bit levels with ``independent`` in the same time;
+  at the dataset's scale 0.25, 6 spp (10.8 levels) are cleaner than the 8 independent spp
+  the shipped nets were first trained on (12.1), in less time.
 * Cross-sections: Mitsuba's curves are round; each fiber gets the radius sqrt(t_x t_y) of
   the circle with its ellipse's area (:meth:`ipm.FiberSet.round_radii`), so the fiber
   volume, and with it how much a ply of ``m`` fibers fills, is kept.  Seen from random

@@ -72,8 +72,7 @@ def scene_npz(path: Path, params, seed: int) -> None:
              soft_boxes=np.array([[*centre, side, share * opts.key_light]
                                   for _, centre, side, share in S.SOFT_BOXES]),
              room_light=opts.room_light, backdrop=opts.backdrop, roughness=opts.roughness,
-             sheen=opts.sheen,
-             backdrop_depth=S.BACKDROP_DEPTH_MM)
+             sheen=opts.sheen, backdrop_depth=S.BACKDROP_DEPTH_MM)
 
 
 def cycles(blender_python: str, npz: Path, config: tuple[str, int | None], tmp: Path,

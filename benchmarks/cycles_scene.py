@@ -81,8 +81,8 @@ def build(data: dict, samples: int, threads: int, material: str, bounces: int | 
     scene.collection.objects.link(camera)
     scene.camera = camera
 
-    for name, (x, y, z, size, radiance) in zip(("key_left", "key_right"), data["soft_boxes"],
-                                               strict=True):
+    for i, (x, y, z, size, radiance) in enumerate(data["soft_boxes"]):
+        name = f"soft_box_{i}"
         light = bpy.data.lights.new(name, "AREA")
         light.shape, light.size = "SQUARE", float(size)
         light.energy = float(radiance) * math.pi * float(size) ** 2  # W of a Lambertian square

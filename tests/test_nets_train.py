@@ -136,8 +136,10 @@ def test_resume_continues_and_refuses_other_options(data, tmp_path):
 
 
 def test_init_starts_from_trained_weights(trained, data, tmp_path):
-    """--init: the first epoch starts from the given run's net (its validation error at
-    step 0 is that net's), and a net of another configuration is refused in one line."""
+    """--init: training starts from the given run's net (with a rate too small to move
+    them, its weights come out unchanged), and a net of another configuration is refused
+    in one line."""
+    from ipm.nets.model import NetConfig, YarnNet
     from ipm.nets.store import load_net
     from ipm.nets.train import train, warm_start
 
@@ -152,8 +154,6 @@ def test_init_starts_from_trained_weights(trained, data, tmp_path):
     # the weights (not BatchNorm's running statistics, which a training step updates)
     for (k, a), b in zip(net.named_parameters(), tuned.parameters(), strict=True):
         assert torch.allclose(a, b, atol=1e-6), k
-    from ipm.nets.model import NetConfig, YarnNet
-
     wider = YarnNet(NetConfig("raw", "resnet18", 0.25, SCALE))
     with pytest.raises(UserError, match="another net .*width 0.125.*width 0.25"):
         warm_start(wider, source)

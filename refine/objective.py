@@ -22,7 +22,7 @@ from ipm.render.photometric import Photometric
 #: their rise; the other groups identify none of the refined parameters but add seed noise
 #: (the histogram at its former weight 10 made most of the loss's noise), so they are off.
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
-                   "period": 1.0, "histogram": 0.0}
+                   "period": 1.0, "stripes": 2.0, "histogram": 0.0}
 
 
 def centre_crop(img: np.ndarray, h: int, w: int) -> np.ndarray:

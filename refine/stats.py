@@ -13,6 +13,8 @@ middle, the border band with the flyaways outside) and each strip is described b
   fibers and plies, and the direction of twist;
 * ``spectrum``: log power in log-spaced frequency bands along the axis, relative to the
   strip's mean power: the periodicity of the ply twist (``alpha_ply / n``) and of the fibers;
+* ``period``, ``stripes``: of the core band along the axis, its autocorrelation and the
+  cumulative distribution of its power over log frequency: the ply stripes' period;
 * ``histogram``: a soft intensity histogram of the whole image.
 
 Each statistic is computed on a kornia Gaussian pyramid (``levels``).  Shapes: images are
@@ -27,7 +29,7 @@ import kornia
 import torch
 from torch import Tensor, nn
 
-GROUPS = ("core", "flyaways", "orientation", "spectrum", "period", "histogram")
+GROUPS = ("core", "flyaways", "orientation", "spectrum", "period", "stripes", "histogram")
 
 
 def _check_image(x: Tensor, name: str) -> None:
@@ -140,14 +142,23 @@ def _level_stats(dev: Tensor, strips: int, bands: int) -> dict[str, Tensor]:
     logp = torch.log(power.flatten(1) @ bins.T + 1e-10)
     spectrum = 0.25 * (logp - logp.mean(dim=-1, keepdim=True))
     return {"core": 4 * median, "flyaways": 8 * fly, "orientation": orientation,
-            "spectrum": spectrum, "period": _axial_autocorrelation(band)}
+            "spectrum": spectrum, "period": _axial_autocorrelation(band),
+            "stripes": _axial_spectrum_cdf(band)}
 
 
-#: Gaussian blur (std in pixels) of the core band before its autocorrelation: pixel noise
-#: (sensor noise in a photo, Monte Carlo noise in a render, at other levels) would otherwise
-#: lower every normalised lag alike and read as a faster decorrelation, i.e. a tighter
-#: twist; the blur keeps 1/30 of it and the ply stripes (periods of 6 px and more).
+#: Gaussian blur (std in pixels) of the core band before its autocorrelation and spectrum:
+#: pixel noise (sensor noise in a photo, Monte Carlo noise in a render, at other levels)
+#: would otherwise lower every normalised lag alike and read as a faster decorrelation, i.e.
+#: a tighter twist; the blur keeps 1/30 of it and the ply stripes (periods of 6 px and more).
 ACF_BLUR = 1.5
+
+
+def _blurred_rows(band: Tensor) -> Tensor:
+    """``band`` (B, h, W) blurred by ACF_BLUR, each row minus its mean."""
+    k = 2 * math.ceil(3 * ACF_BLUR) + 1
+    x = kornia.filters.gaussian_blur2d(band[:, None], (k, k), (ACF_BLUR, ACF_BLUR),
+                                       border_type="replicate")[:, 0]
+    return x - x.mean(dim=-1, keepdim=True)
 
 
 def _axial_autocorrelation(band: Tensor) -> Tensor:
@@ -156,14 +167,42 @@ def _axial_autocorrelation(band: Tensor) -> Tensor:
     twist repeat every ``alpha_ply / n`` and peak there, wherever each fiber lands.
     Zero-padded FFT, so that the lags do not wrap around."""
     w = band.shape[-1]
-    k = 2 * math.ceil(3 * ACF_BLUR) + 1
-    x = kornia.filters.gaussian_blur2d(band[:, None], (k, k), (ACF_BLUR, ACF_BLUR),
-                                       border_type="replicate")[:, 0]
-    x = x - x.mean(dim=-1, keepdim=True)
+    x = _blurred_rows(band)
     power = torch.fft.rfft(x, n=2 * w).abs().square()
     acf = torch.fft.irfft(power, n=2 * w)[..., : w // 3 + 1].mean(dim=1)
     acf = acf / torch.arange(w, w - acf.shape[-1], -1, dtype=x.dtype, device=x.device)
     return acf[:, 1:] / acf[:, :1].clamp_min(1e-12)
+
+
+#: Log-spaced frequency bins of the axial spectrum, from 2 / W to PERIOD_FMAX cycles per px.
+PERIOD_BINS = 24
+PERIOD_FMAX = 0.25
+
+
+def _axial_spectrum_cdf(band: Tensor) -> Tensor:
+    """(B, PERIOD_BINS) cumulative distribution of the axial power of ``band`` (B, h, W)
+    over log frequency: the rows blurred by ACF_BLUR, Hann-windowed, their power spectra
+    averaged and summed into log-spaced bins, then accumulated and normalised.
+
+    The ply stripes repeat every ``alpha_ply / n`` wherever each fiber lands, and put a peak
+    there.  Why beside the autocorrelation (``period``): two autocorrelations whose periods
+    differ drift apart in phase at long lags, so their squared distance has a minimum only a
+    few % of the range wide around the truth and can be lower for a far tighter twist whose
+    stripes the blur erases (a flat curve is closer to an oscillation than a shifted one
+    is).  Between cumulative distributions the squared distance grows with how far the peak
+    moved: a wide basin, coarser at its bottom, that keeps the search in the right one."""
+    w = band.shape[-1]
+    x = _blurred_rows(band) * torch.hann_window(w, dtype=band.dtype, device=band.device)
+    power = torch.fft.rfft(x, dim=-1).abs().square().mean(dim=1)  # (B, W // 2 + 1)
+    f = torch.fft.rfftfreq(w, dtype=x.dtype, device=x.device)
+    edges = torch.logspace(math.log10(2 / w), math.log10(PERIOD_FMAX), PERIOD_BINS + 1,
+                           dtype=x.dtype, device=x.device)
+    index = torch.bucketize(f, edges) - 1
+    inside = (index >= 0) & (index < PERIOD_BINS)
+    bins = torch.zeros(PERIOD_BINS, f.numel(), dtype=x.dtype, device=x.device)
+    bins[index[inside], torch.nonzero(inside)[:, 0]] = 1
+    binned = power @ bins.T
+    return binned.cumsum(dim=-1) / binned.sum(dim=-1, keepdim=True).clamp_min(1e-20)
 
 
 def yarn_statistics(image: Tensor, levels: int = 2, strips: int = 6, bands: int = 6

@@ -87,3 +87,43 @@ def test_period_sees_the_twist_period_not_the_pixel_noise():
                      .mean())
 
     assert dist(clean, noisy) < 0.05 * dist(clean, stripes(angle, 1.1 * period))
+
+
+def test_stripes_see_the_twist_period_not_the_pixel_noise():
+    """The axial spectrum's distribution rises most in the bin of the stripes' frequency
+    along the axis; pixel noise as strong as the stripes moves it far less than a 10% change
+    of the period does (without the blur before the spectrum, the noise moves it past the
+    bound)."""
+    from ipm.refine.stats import PERIOD_BINS, PERIOD_FMAX
+
+    angle, period, w = 0.5, 14.0, 320
+    clean = stripes(angle, period, w=w)
+    cdf = yarn_statistics(clean, levels=1)["stripes"][0]
+    along = period / torch.cos(torch.tensor(angle))  # the stripes' period along a row
+    edges = torch.logspace(torch.log10(torch.tensor(2 / w)), torch.log10(
+        torch.tensor(PERIOD_FMAX)), PERIOD_BINS + 1)
+    step = int(torch.diff(cdf, prepend=cdf.new_zeros(1)).argmax())
+    assert edges[step] <= 1 / along < edges[step + 1]
+    noisy = (clean + 0.2 * torch.randn(clean.shape, generator=torch.Generator().manual_seed(0),
+                                      dtype=clean.dtype)).clamp(0, 1)
+
+    def dist(a, b):
+        return float((yarn_statistics(a)["stripes"] - yarn_statistics(b)["stripes"]).square()
+                     .mean())
+
+    assert dist(clean, noisy) < 0.05 * dist(clean, stripes(angle, 1.1 * period))
+
+
+def test_stripes_distance_grows_with_the_period_error():
+    """The basin around the true period is wide: the distance grows with the error of the
+    period, and stripes too fine to resolve (a far tighter twist) are farther than a 20%
+    error.  The autocorrelation (``period``) fails both: phase drift at long lags makes a
+    20% error cost more than erased stripes."""
+    def dist(a, b):
+        return float((yarn_statistics(a)["stripes"] - yarn_statistics(b)["stripes"]).square()
+                     .mean())
+
+    a = stripes(0.5, 14.0)
+    errors = [dist(a, stripes(0.5, 14.0 * f)) for f in (1.05, 1.1, 1.2, 1.4)]
+    assert errors == sorted(errors) and errors[0] > 0
+    assert dist(a, stripes(0.5, 2.5)) > errors[2]

@@ -1,0 +1,100 @@
+"""What changes to THE scene's sampling would buy at equal noise: the levers left towards the
+"20x faster than Cycles at similar noise" target of :mod:`ipm.benchmarks.blender_compare`.
+
+Same yarns, resolution (800x240) and noise measure as ``blender_compare`` (high-pass noise of
+two renders with other sampler seeds, sRGB).  Each lever renders at two sample counts; the
+time ipm would need for the noise of Cycles in the paper's setup follows from noise^2 x time
+being constant (noise falls as 1 / sqrt(samples)), and the speed-up is Cycles' measured
+time over it.  Levers, none of which changes the expected image:
+
+* emitter sampling weights in proportion to each lamp's share of the light (Mitsuba picks
+  the two soft boxes and the room light with equal probability by default);
+* the ``orthogonal`` and ``ldsampler`` pixel samplers (they round the sample count up to a
+  prime square and a power of two: the table gives the counts they used).
+
+    python -m ipm.benchmarks.noise_levers [--out benchmarks/results/noise_levers.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ipm.benchmarks.blender_compare import SCALE, SEEDS, detail_snr
+from ipm.benchmarks.machine import markdown_header, publish
+from ipm.generator import generate
+from ipm.photo import linear_to_srgb
+from ipm.prior import GuidedPrior
+from ipm.render import scene as S
+from ipm.render.variant import mitsuba
+
+COMMAND = "python -m ipm.benchmarks.noise_levers --out benchmarks/results/noise_levers.md"
+#: Cycles, the paper's Principled Hair BSDF, 64 samples: benchmarks/results/blender_compare.md
+CYCLES_SECONDS, CYCLES_NOISE = 37.08, 0.0141
+#: Each lamp's sampling weight: its radiance share times its solid angle seen from the yarn
+#: (the soft boxes' sides and distances are equal), the room light by its pi sr of
+#: cosine-weighted sky against a soft box's ~0.26 sr.
+POWER_WEIGHTS = {"key_left": 1.0, "key_right": 0.6, "room": 0.4}
+LEVERS = {"as shipped (multijitter, equal lamp weights)": ("multijitter", None),
+          "lamp weights by power": ("multijitter", POWER_WEIGHTS),
+          "orthogonal sampler": ("orthogonal", None),
+          "ldsampler": ("ldsampler", None),
+          "orthogonal + lamp weights": ("orthogonal", POWER_WEIGHTS)}
+SPP = (16, 36)
+
+
+def lever_scene(mi, fibers, color, sampler: str, weights: dict[str, float] | None,
+                tmp: Path):
+    curves = tmp / "curves.txt"
+    curves.write_text(fibers.mitsuba_curve_text())
+    d = S.scene_dict(SCALE, 1, str(curves), color)
+    d["sensor"]["sampler"]["type"] = sampler
+    for name, w in (weights or {}).items():
+        (d[name]["emitter"] if "emitter" in d[name] else d[name])["sampling_weight"] = w
+    return mi.load_dict(d, parallel=False, optimize=False)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--yarns", type=int, default=2)
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    mi = mitsuba(None)
+    yarns = GuidedPrior().sample_many(args.yarns, seed=0)
+    table = ["| lever | samples asked (used) | median time (s) | noise (sRGB) | time at "
+             "Cycles' noise (s) | speed-up over Cycles |", "|---|---|---|---|---|---|"]
+    with tempfile.TemporaryDirectory(prefix="ipm-levers-") as tmp:
+        for label, (sampler, weights) in LEVERS.items():
+            for spp in SPP:
+                seconds, noises, used = [], [], spp
+                for k, p in enumerate(yarns):
+                    scene = lever_scene(mi, generate(p, k), p.color, sampler, weights,
+                                        Path(tmp))
+                    mi.render(scene, spp=1)  # kernels compile
+                    images = []
+                    for s in SEEDS:
+                        t0 = time.perf_counter()
+                        img = mi.render(scene, spp=spp, seed=s)
+                        images.append(linear_to_srgb(np.array(img, dtype=np.float32)[..., :3]))
+                        seconds.append(time.perf_counter() - t0)
+                    used = scene.sensors()[0].sampler().sample_count()
+                    noises.append(detail_snr(*images)[1])
+                t, noise = float(np.median(seconds)), float(np.mean(noises))
+                at_cycles = t * (noise / CYCLES_NOISE) ** 2
+                table.append(f"| {label} | {spp} ({used}) | {t:.2f} | {noise:.4f} | "
+                             f"{at_cycles:.2f} | {CYCLES_SECONDS / at_cycles:.1f}x |")
+                print(table[-1], flush=True)
+    text = (markdown_header("Sampling levers at equal noise", COMMAND, "numpy", "mitsuba")
+            + f"\n{args.yarns} yarns (the guided prior's first draws, seed 0), 800x240 px, "
+            "all cores; the render call only (no scene update), median over yarns and "
+            f"seeds; Cycles: {CYCLES_SECONDS} s at noise {CYCLES_NOISE} "
+            "(benchmarks/results/blender_compare.md).\n\n" + "\n".join(table) + "\n")
+    publish(text, args.out)
+
+
+if __name__ == "__main__":
+    main()

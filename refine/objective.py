@@ -17,10 +17,12 @@ from ipm.refine.stats import group_distances, stat_distance, yarn_statistics
 from ipm.render.photometric import Photometric
 
 #: Group weights from ``python -m ipm.benchmarks.identifiability`` on 10 held-out photos
-#: (docs/identifiability.md): only the core profile (R_ply, r) and the axial autocorrelation
-#: (alpha_ply, R_ply, r_x) put their minimum at the truth with a seed spread small against
-#: their rise; the other groups identify none of the refined parameters but add seed noise
-#: (the histogram at its former weight 10 made most of the loss's noise), so they are off.
+#: (docs/identifiability.md): the core profile (R_ply), the axial autocorrelation (alpha_ply,
+#: R_ply) and the stripes' spectrum distribution (alpha_ply, R_ply) put their minimum at the
+#: truth with a seed spread small against their rise; the stripes at twice the weight, for
+#: their wide basin (:func:`ipm.refine.stats._axial_spectrum_cdf`).  The other groups add
+#: seed noise for less (the histogram at its former weight 10 made most of the loss's
+#: noise), so they are off.
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
                    "period": 1.0, "stripes": 2.0, "histogram": 0.0}
 

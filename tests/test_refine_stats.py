@@ -17,6 +17,17 @@ def stripes(angle: float, period: float = 12.0, h: int = 96, w: int = 320, shift
     return img[None, None].expand(1, 3, h, w).contiguous()
 
 
+def noisy(img: torch.Tensor, std: float) -> torch.Tensor:
+    """``img`` plus seeded Gaussian pixel noise of ``std``, clipped to [0, 1]."""
+    noise = torch.randn(img.shape, generator=torch.Generator().manual_seed(0), dtype=img.dtype)
+    return (img + std * noise).clamp(0, 1)
+
+
+def group_distance(a: torch.Tensor, b: torch.Tensor, group: str) -> float:
+    """Mean squared difference of one statistics group of two images."""
+    return float((yarn_statistics(a)[group] - yarn_statistics(b)[group]).square().mean())
+
+
 def test_smoke_and_cardinality():
     s = yarn_statistics(torch.rand(3, 3, 96, 320, dtype=torch.float64))
     assert set(s) == set(GROUPS)
@@ -79,14 +90,8 @@ def test_period_sees_the_twist_period_not_the_pixel_noise():
     acf = yarn_statistics(clean, levels=1)["period"][0]
     along = period / torch.cos(torch.tensor(angle))  # the stripes' period along a row
     assert abs(int(acf[5:].argmax()) + 6 - float(along)) <= 1
-    noisy = (clean + 0.4 * torch.randn(clean.shape, generator=torch.Generator().manual_seed(0),
-                                      dtype=clean.dtype)).clamp(0, 1)
-
-    def dist(a, b):
-        return float((yarn_statistics(a)["period"] - yarn_statistics(b)["period"]).square()
-                     .mean())
-
-    assert dist(clean, noisy) < 0.05 * dist(clean, stripes(angle, 1.1 * period))
+    assert (group_distance(clean, noisy(clean, 0.4), "period")
+            < 0.05 * group_distance(clean, stripes(angle, 1.1 * period), "period"))
 
 
 def test_stripes_see_the_twist_period_not_the_pixel_noise():
@@ -104,14 +109,8 @@ def test_stripes_see_the_twist_period_not_the_pixel_noise():
         torch.tensor(PERIOD_FMAX)), PERIOD_BINS + 1)
     step = int(torch.diff(cdf, prepend=cdf.new_zeros(1)).argmax())
     assert edges[step] <= 1 / along < edges[step + 1]
-    noisy = (clean + 0.2 * torch.randn(clean.shape, generator=torch.Generator().manual_seed(0),
-                                      dtype=clean.dtype)).clamp(0, 1)
-
-    def dist(a, b):
-        return float((yarn_statistics(a)["stripes"] - yarn_statistics(b)["stripes"]).square()
-                     .mean())
-
-    assert dist(clean, noisy) < 0.05 * dist(clean, stripes(angle, 1.1 * period))
+    assert (group_distance(clean, noisy(clean, 0.2), "stripes")
+            < 0.05 * group_distance(clean, stripes(angle, 1.1 * period), "stripes"))
 
 
 def test_stripes_distance_grows_with_the_period_error():
@@ -119,11 +118,7 @@ def test_stripes_distance_grows_with_the_period_error():
     period, and stripes too fine to resolve (a far tighter twist) are farther than a 20%
     error.  The autocorrelation (``period``) fails both: phase drift at long lags makes a
     20% error cost more than erased stripes."""
-    def dist(a, b):
-        return float((yarn_statistics(a)["stripes"] - yarn_statistics(b)["stripes"]).square()
-                     .mean())
-
     a = stripes(0.5, 14.0)
-    errors = [dist(a, stripes(0.5, 14.0 * f)) for f in (1.05, 1.1, 1.2, 1.4)]
+    errors = [group_distance(a, stripes(0.5, 14.0 * f), "stripes") for f in (1.05, 1.1, 1.2, 1.4)]
     assert errors == sorted(errors) and errors[0] > 0
-    assert dist(a, stripes(0.5, 2.5)) > errors[2]
+    assert group_distance(a, stripes(0.5, 2.5), "stripes") > errors[2]

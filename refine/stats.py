@@ -89,12 +89,6 @@ def _strip_mean(x: Tensor, strips: int) -> Tensor:
     return x[:, :h].reshape(x.shape[0], strips, h // strips, *x.shape[2:]).mean(dim=2)
 
 
-def _band_edges(w: int, bands: int) -> list[tuple[int, int]]:
-    top = w // 2
-    edges = torch.unique(torch.logspace(0, math.log10(top + 1), bands + 1).long()).tolist()
-    return [(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
-
-
 def _spectrum_bins(h: int, w: int, bands: int, angles: int, device, dtype):
     """(bands * angles, h * (w // 2 + 1)) averaging matrix of the rfft2 plane: log-spaced
     radial frequency bands times orientation bins over [0, pi)."""
@@ -199,9 +193,8 @@ def _axial_spectrum_cdf(band: Tensor) -> Tensor:
                            dtype=x.dtype, device=x.device)
     index = torch.bucketize(f, edges) - 1
     inside = (index >= 0) & (index < PERIOD_BINS)
-    bins = torch.zeros(PERIOD_BINS, f.numel(), dtype=x.dtype, device=x.device)
-    bins[index[inside], torch.nonzero(inside)[:, 0]] = 1
-    binned = power @ bins.T
+    binned = power.new_zeros(power.shape[0], PERIOD_BINS).index_add_(1, index[inside],
+                                                                     power[:, inside])
     return binned.cumsum(dim=-1) / binned.sum(dim=-1, keepdim=True).clamp_min(1e-20)
 
 

@@ -69,23 +69,26 @@ def main() -> None:
              "Cycles' noise (s) | speed-up over Cycles |", "|---|---|---|---|---|---|"]
     with tempfile.TemporaryDirectory(prefix="ipm-levers-") as tmp:
         for label, (sampler, weights) in LEVERS.items():
-            for spp in SPP:
-                seconds, noises, used = [], [], spp
-                for k, p in enumerate(yarns):
-                    scene = lever_scene(mi, generate(p, k), p.color, sampler, weights,
-                                        Path(tmp))
-                    mi.render(scene, spp=1)  # kernels compile
+            # per sample count: render seconds, noise per yarn, the count the sampler used
+            seconds = {spp: [] for spp in SPP}
+            noises = {spp: [] for spp in SPP}
+            used = dict.fromkeys(SPP)
+            for k, p in enumerate(yarns):
+                scene = lever_scene(mi, generate(p, k), p.color, sampler, weights, Path(tmp))
+                mi.render(scene, spp=1)  # kernels compile
+                for spp in SPP:
                     images = []
                     for s in SEEDS:
                         t0 = time.perf_counter()
                         img = mi.render(scene, spp=spp, seed=s)
                         images.append(linear_to_srgb(np.array(img, dtype=np.float32)[..., :3]))
-                        seconds.append(time.perf_counter() - t0)
-                    used = scene.sensors()[0].sampler().sample_count()
-                    noises.append(detail_snr(*images)[1])
-                t, noise = float(np.median(seconds)), float(np.mean(noises))
+                        seconds[spp].append(time.perf_counter() - t0)
+                    used[spp] = scene.sensors()[0].sampler().sample_count()
+                    noises[spp].append(detail_snr(*images)[1])
+            for spp in SPP:
+                t, noise = float(np.median(seconds[spp])), float(np.mean(noises[spp]))
                 at_cycles = t * (noise / CYCLES_NOISE) ** 2
-                table.append(f"| {label} | {spp} ({used}) | {t:.2f} | {noise:.4f} | "
+                table.append(f"| {label} | {spp} ({used[spp]}) | {t:.2f} | {noise:.4f} | "
                              f"{at_cycles:.2f} | {CYCLES_SECONDS / at_cycles:.1f}x |")
                 print(table[-1], flush=True)
     text = (markdown_header("Sampling levers at equal noise", COMMAND, "numpy", "mitsuba")

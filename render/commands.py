@@ -106,7 +106,10 @@ def generate(
     = "train",
     scale: Annotated[float | None, typer.Option(help="resolution (1 = 2000 x 600 px); "
                                                 "default 0.25")] = None,
-    spp: Annotated[int | None, typer.Option(min=1, help="samples per pixel; default 8")] = None,
+    spp: Annotated[str | None, typer.Option(help="samples per pixel, default 6; a range "
+                                            "like 4-24 draws each sample's count "
+                                            "log-uniformly (seeded), for nets robust to the "
+                                            "noise level")] = None,
     workers: Annotated[int | None, typer.Option(min=1, help="render processes; default: one "
                                                 "per core")] = None,
     photometric: Annotated[bool, typer.Option(help="vary exposure, white balance, yarn shift "
@@ -121,12 +124,19 @@ def generate(
     """Make the synthetic dataset: guided-prior yarns rendered in THE scene, with
     ``manifest.jsonl`` (one JSON object per sample) and ``images/``."""
     from ipm.progress import progress_bar
-    from ipm.render.dataset import DEFAULT_SCALE, DEFAULT_SPP, GenerateOptions, generate_dataset
+    from ipm.render.dataset import (
+        DEFAULT_SCALE,
+        DEFAULT_SPP,
+        GenerateOptions,
+        generate_dataset,
+        spp_range,
+    )
     from ipm.render.photometric import NO_VARIATION, PhotometricRanges
 
+    spp_min, spp_max = spp_range(spp) if spp is not None else (DEFAULT_SPP, None)
     opts = GenerateOptions(count=count, seed=seed, split=split,
                            scale=DEFAULT_SCALE if scale is None else scale,
-                           spp=DEFAULT_SPP if spp is None else spp,
+                           spp=spp_min, spp_max=spp_max,
                            photometric=PhotometricRanges() if photometric else NO_VARIATION)
     with progress_bar("{task.fields[rate]}") as bar:
         task = bar.add_task(f"{split} -> {out}", total=count, rate="")

@@ -7,16 +7,17 @@ Dataset contract (``DIR`` made by ``ipm generate``):
 * ``DIR/manifest.jsonl``: one JSON object per line, sorted by ``index`` when a run ends, with
   ``index``, ``image`` (path relative to ``DIR``), ``params`` (flat
   :meth:`~ipm.params.YarnParams.to_dict`), ``seed`` (fiber seed), ``render_seed``,
-  ``split``, ``scale``, ``spp``, ``width``, ``height``, ``pixel_size_mm`` and
-  ``photometric`` (the applied :class:`~ipm.render.photometric.Photometric`).
+  ``split``, ``scale``, ``spp`` (the count this sample's render took), ``width``,
+  ``height``, ``pixel_size_mm`` and ``photometric`` (the applied
+  :class:`~ipm.render.photometric.Photometric`).
 * ``DIR/dataset.json``: the settings of the run; a rerun with other settings is refused.
 
-Sample ``i`` depends only on (seed, split, i): its parameters, fiber seed, render seed and
-capture variation come from ``SeedSequence([seed, crc32(split), i])``, so its bytes do not
-depend on the worker that made it or on the order.  Images are written atomically before
-their manifest line, and a rerun keeps the lines whose image exists, drops a torn last line
-and renders what is missing: killed at any moment and rerun, a folder ends with exactly
-``count`` samples.
+Sample ``i`` depends only on (seed, split, i): its parameters, fiber seed, render seed,
+capture variation and (with ``spp_max``) sample count come from ``SeedSequence([seed,
+crc32(split), i])``, so its bytes do not depend on the worker that made it or on the
+order.  Images are written atomically before their manifest line, and a rerun keeps the
+lines whose image exists, drops a torn last line and renders what is missing: killed at any
+moment and rerun, a folder ends with exactly ``count`` samples.
 """
 
 from __future__ import annotations
@@ -54,15 +55,34 @@ DEFAULT_SCALE = 0.25
 DEFAULT_SPP = 6
 
 
+def spp_range(text: str) -> tuple[int, int | None]:
+    """``"6"`` -> (6, None); ``"4-24"`` -> (4, 24): the CLI's ``--spp``."""
+    lo, sep, hi = text.partition("-")
+    try:
+        spp, spp_max = int(lo), (int(hi) if sep else None)
+    except ValueError:
+        raise UserError(f"spp must be a count like 6 or a range like 4-24, got {text!r}") \
+            from None
+    return spp, spp_max
+
+
 @dataclass(frozen=True)
 class GenerateOptions:
-    """One dataset: ``count`` samples of ``split`` from master ``seed``."""
+    """One dataset: ``count`` samples of ``split`` from master ``seed``.
+
+    spp_max: when given, each sample's sample count is drawn log-uniformly from the integers
+    ``spp .. spp_max`` (seeded per sample; the sampler may round it up), so that a dataset
+    holds renders of several noise levels and nets trained on it do not learn one noise level
+    (photos are cleaner than the default 6 spp, and finer photos averaged down to the nets'
+    pitch cleaner still).
+    """
 
     count: int
     seed: int = 0
     split: str = "train"
     scale: float = DEFAULT_SCALE
     spp: int = DEFAULT_SPP
+    spp_max: int | None = None
     photometric: PhotometricRanges = field(default_factory=PhotometricRanges)
     scene: SceneOptions = DEFAULT_OPTIONS
 
@@ -71,6 +91,8 @@ class GenerateOptions:
             raise UserError(f"count must be >= 1, got {self.count}")
         if self.spp < 1:
             raise UserError(f"spp must be >= 1, got {self.spp}")
+        if self.spp_max is not None and self.spp_max < self.spp:
+            raise UserError(f"the spp range {self.spp}-{self.spp_max} is empty")
         if not self.split or not self.split.replace("_", "").replace("-", "").isalnum():
             raise UserError(f"split must be a simple name like train or val, got {self.split!r}")
         frame_size(self.scale)
@@ -79,6 +101,8 @@ class GenerateOptions:
         """Everything a sample's bytes depend on (``count`` aside): JSON-ready."""
         d = asdict(self)
         del d["count"]
+        if self.spp_max is None:  # as recorded before sample-count ranges existed
+            del d["spp_max"]
         return json.loads(json.dumps(d))
 
 
@@ -88,21 +112,39 @@ class SampleSeeds:
     fiber_seed: int
     render_seed: int
     photometric_rng: np.random.Generator
+    spp_rng: np.random.Generator
 
 
 def sample_seeds(seed: int, split: str, index: int) -> SampleSeeds:
-    """Independent streams of sample ``index``, from (seed, split, index) only."""
+    """Independent streams of sample ``index``, from (seed, split, index) only.  (A child of
+    a SeedSequence depends on its position only, so the stream added last, ``spp_rng``, left
+    the others, and the datasets made before it, unchanged.)"""
     ss = np.random.SeedSequence([seed, zlib.crc32(split.encode()), index])
-    p, f, r, ph = ss.spawn(4)
+    p, f, r, ph, n = ss.spawn(5)
     return SampleSeeds(np.random.default_rng(p), int(f.generate_state(1)[0]),
-                       int(r.generate_state(1)[0]), np.random.default_rng(ph))
+                       int(r.generate_state(1)[0]), np.random.default_rng(ph),
+                       np.random.default_rng(n))
 
 
-def sample_plan(opts: GenerateOptions, index: int) -> tuple[YarnParams, int, int, Photometric]:
-    """(params, fiber seed, render seed, capture variation) of sample ``index``."""
+@dataclass(frozen=True)
+class SamplePlan:
+    """Everything sample ``index`` is made of."""
+
+    params: YarnParams
+    fiber_seed: int
+    render_seed: int
+    photometric: Photometric
+    spp: int
+
+
+def sample_plan(opts: GenerateOptions, index: int) -> SamplePlan:
     s = sample_seeds(opts.seed, opts.split, index)
-    return (GuidedPrior().sample(s.params_rng), s.fiber_seed, s.render_seed,
-            opts.photometric.draw(s.photometric_rng))
+    spp = opts.spp
+    if opts.spp_max is not None:
+        u = s.spp_rng.uniform(np.log(opts.spp), np.log(opts.spp_max + 1))
+        spp = min(int(np.exp(u)), opts.spp_max)
+    return SamplePlan(GuidedPrior().sample(s.params_rng), s.fiber_seed, s.render_seed,
+                      opts.photometric.draw(s.photometric_rng), spp)
 
 
 def image_name(index: int) -> str:
@@ -125,15 +167,17 @@ def make_sample(folder: str, opts: GenerateOptions, index: int) -> dict[str, Any
     Runs in a worker process (its :class:`Renderer` is made by the pool initializer)."""
     from ipm.render.renderer import save_png
 
-    params, fiber_seed, render_seed, ph = sample_plan(opts, index)
-    image = _renderer.render(params, fiber_seed, opts.scale, opts.spp, render_seed, ph)
+    plan = sample_plan(opts, index)
+    image = _renderer.render(plan.params, plan.fiber_seed, opts.scale, plan.spp,
+                             plan.render_seed, plan.photometric)
     save_png(Path(folder, image_name(index)), image)
     width, height = frame_size(opts.scale)
     return {"index": index, "image": image_name(index), "split": opts.split,
-            "params": params.to_dict(), "seed": fiber_seed, "render_seed": render_seed,
-            "scale": opts.scale, "spp": opts.spp, "width": width, "height": height,
-            "pixel_size_mm": pixel_size_mm(opts.scale), "photometric": ph.to_dict(),
-            "variant": _renderer.variant}
+            "params": plan.params.to_dict(), "seed": plan.fiber_seed,
+            "render_seed": plan.render_seed, "scale": opts.scale,
+            "spp": _renderer.sample_count(opts.scale, plan.spp),
+            "width": width, "height": height, "pixel_size_mm": pixel_size_mm(opts.scale),
+            "photometric": plan.photometric.to_dict(), "variant": _renderer.variant}
 
 
 # -- folder state ----------------------------------------------------------------------------

@@ -98,6 +98,14 @@ class Renderer:
             self._scenes[scale] = (scene, self.mi.traverse(scene))
         return self._scenes[scale]
 
+    def sample_count(self, scale: float, spp: int) -> int:
+        """The samples per pixel the scene's sampler takes when asked for ``spp``: multijitter
+        rounds up to a product of two near-equal integers (7 -> 8, 13 -> 15), orthogonal to a
+        prime square."""
+        sampler = self._scene(scale)[0].sensors()[0].sampler()
+        sampler.set_sample_count(spp)  # every render sets its own count again
+        return int(sampler.sample_count())
+
     def render_fibers(self, fibers: FiberSet, color: tuple[float, float, float], scale: float,
                       spp: int, render_seed: int = 0, to_world: np.ndarray | None = None
                       ) -> np.ndarray:

@@ -22,6 +22,7 @@ from ipm.render.dataset import (
     read_manifest,
     sample_plan,
     sample_seeds,
+    spp_range,
 )
 from ipm.render.photometric import Photometric
 
@@ -56,6 +57,30 @@ def test_sample_seeds_depend_on_seed_split_index_only():
     assert all(o.fiber_seed != a.fiber_seed for o in others)
     opts = GenerateOptions(count=10, seed=0)
     assert sample_plan(opts, 3) == sample_plan(opts, 3)
+
+
+def test_an_spp_range_draws_each_samples_count_within_it_and_leaves_the_rest():
+    fixed, ranged = GenerateOptions(count=200), GenerateOptions(count=200, spp=4, spp_max=24)
+    plans = [sample_plan(ranged, i) for i in range(200)]
+    counts = [p.spp for p in plans]
+    assert min(counts) == 4 and max(counts) == 24
+    # log-uniform: as many samples below the geometric mean (~9.8) as above it
+    assert 70 < sum(c < 9.8 for c in counts) < 130
+    assert [p.spp for p in map(sample_plan, [ranged] * 5, range(5))] == counts[:5]
+    for i, p in enumerate(plans[:20]):  # the sample count changes nothing else of a sample
+        q = sample_plan(fixed, i)
+        assert (p.params, p.fiber_seed, p.render_seed, p.photometric) == \
+            (q.params, q.fiber_seed, q.render_seed, q.photometric)
+        assert q.spp == 6
+    assert "spp_max" not in fixed.settings() and ranged.settings()["spp_max"] == 24
+
+
+def test_spp_text_is_a_count_or_a_range():
+    assert spp_range("6") == (6, None) and spp_range("4-24") == (4, 24)
+    with pytest.raises(UserError, match="range like 4-24"):
+        spp_range("many")
+    with pytest.raises(UserError, match="empty"):
+        GenerateOptions(count=1, spp=8, spp_max=4)
 
 
 def test_manifest_contract(tmp_path):
@@ -105,10 +130,11 @@ def test_samples_are_the_same_bytes_across_processes(tmp_path):
     scene's shapes differently from process to process, about one process in eight rendered
     every image with other sample values (benchmarks/determinism.py; the cause is tested in
     tests/test_render.py)."""
-    opts = ("--count", 4, "--seed", 3, *TINY)
+    opts = ("--count", 4, "--seed", 3, "--scale", "0.1", "--spp", "5-7")
     assert ipm("generate", "--out", tmp_path / "a", "--workers", 2, *opts).returncode == 0
     assert ipm("generate", "--out", tmp_path / "b", "--workers", 1, *opts).returncode == 0
     for rec in check_dataset(tmp_path / "a", 4):
+        assert rec["spp"] in (6, 8)  # the counts multijitter takes: 5 -> 6, 7 -> 8
         assert (tmp_path / "a" / rec["image"]).read_bytes() == \
             (tmp_path / "b" / rec["image"]).read_bytes()
 
@@ -136,7 +162,8 @@ def test_bad_input_one_line_exit_2_nothing_lost(tmp_path):
              (("--count", 3, "--out", a_file / "ds", *TINY), "missing or not writable"),
              (("--count", 3, "--out", out, "--variant", "llvm_rgb", *TINY),
               "unknown Mitsuba variant"),
-             (("--count", 3, "--out", out, "--split", "a/b", *TINY), "split")]
+             (("--count", 3, "--out", out, "--split", "a/b", *TINY), "split"),
+             (("--count", 3, "--out", out, *TINY, "--spp", "8-4"), "range 8-4 is empty")]
     for args, message in cases:
         r = ipm("generate", *args)
         assert r.returncode == 2, (args, r.stderr)

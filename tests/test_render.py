@@ -150,6 +150,29 @@ def test_stratified_samples_are_cleaner_than_independent(renderer):
         SceneOptions(sampler="sobol")
 
 
+def test_weighted_light_choice_is_cleaner_than_uniform(renderer):
+    """The scene's light sampling weights: less noise than picking the lights with equal
+    probability, the same expected image."""
+    uniform = Renderer(options=SceneOptions(light_sampling="uniform"))
+    p = preset("golden")
+
+    def noise_and_mean(r):
+        a, b = (r.render(p, seed=1, scale=0.2, spp=8, render_seed=s) for s in (1, 2))
+        return np.std(a - b), a.mean(axis=(0, 1))
+
+    (n_w, m_w), (n_u, m_u) = noise_and_mean(renderer), noise_and_mean(uniform)
+    assert n_w < 0.9 * n_u, (n_w, n_u)
+    assert np.allclose(m_w, m_u, rtol=0.01), (m_w, m_u)
+    with pytest.raises(UserError, match="unknown light sampling 'random'"):
+        SceneOptions(light_sampling="random")
+
+
+def test_sample_count_is_what_the_sampler_takes(renderer):
+    assert [renderer.sample_count(0.1, n) for n in (4, 6, 7, 13)] == [4, 6, 8, 15]
+    orthogonal = Renderer(options=SceneOptions(sampler="orthogonal"))
+    assert orthogonal.sample_count(0.1, 16) == 25
+
+
 # -- photometric variation ---------------------------------------------------------------
 def test_photometric_draw_is_seeded_and_recorded():
     ranges = PhotometricRanges()

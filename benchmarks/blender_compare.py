@@ -13,7 +13,9 @@ seeds after a high-pass (image minus its 3x3 box blur), sRGB values in [0, 1], n
 quantisation.  Detail SNR: the fiber detail both renders share, ``sqrt(cov(hp(a),
 hp(b)))``, over that noise; it does not depend on how bright or contrasted each renderer
 makes the yarn.  The verdict gives ipm's fewest samples per pixel that match Cycles at 64
-samples by either measure.
+samples by either measure, and the time at which ipm's measure equals Cycles', interpolated
+between the two sample counts around it (log time against log measure: noise falls and SNR
+rises about as a power of the samples).
 
     python -m ipm.benchmarks.blender_compare --blender-python /opt/bpyenv/bin/python
         [--yarns 2] [--figure docs/figures/cycles_vs_ipm.png]
@@ -44,7 +46,9 @@ COMMAND = ("python -m ipm.benchmarks.blender_compare --blender-python /opt/bpyen
            "--figure docs/figures/cycles_vs_ipm.png --out benchmarks/results/blender_compare.md")
 SCALE = 0.4
 CYCLES_SAMPLES = 64
-IPM_SPP = (4, 8, 16, 36, 64)  # sample counts the multijitter sampler takes as they are
+#: Sample counts the multijitter sampler takes as they are (products of two near-equal
+#: integers), finer where ipm's noise crosses Cycles'.
+IPM_SPP = (4, 8, 12, 16, 20, 25, 30, 36, 64)
 SEEDS = (1, 2)
 IPM = "ipm (Mitsuba llvm_ad_rgb)"
 #: Cycles configurations: (fiber material, bounces; None = Cycles' default of 12).
@@ -90,6 +94,18 @@ def cycles(blender_python: str, npz: Path, config: tuple[str, int | None], tmp: 
     rows = [json.loads(line) for line in r.stdout.splitlines() if line.startswith("{")]
     return ([row["seconds"] for row in rows],
             [np.load(f"{prefix}_s{s}.npy") for s in SEEDS])
+
+
+def interpolated_time(times: list[float], values: list[float], target: float,
+                      rising: bool) -> float | None:
+    """The time at which a measure over ipm's sample-count grid reaches ``target``, log-log
+    interpolated between the two grid points around it; None outside the grid."""
+    points = list(zip(times, values, strict=True))
+    for (t0, v0), (t1, v1) in zip(points, points[1:], strict=False):
+        if (v0 < target <= v1) if rising else (v0 > target >= v1):
+            f = (np.log(target) - np.log(v0)) / (np.log(v1) - np.log(v0))
+            return float(np.exp(np.log(t0) + f * (np.log(t1) - np.log(t0))))
+    return None
 
 
 class Rows(dict):
@@ -141,21 +157,24 @@ def main() -> None:
         table.append(f"| {label} | {spp} | {np.median(seconds):.2f} | {np.mean(snrs):.2f} | "
                      f"{np.mean(noises):.4f} |")
     verdicts = []
+    ipm_times = [float(np.median(rows[f"{IPM} {spp}"][0])) for spp in IPM_SPP]
     for label in CYCLES:
-        t_c, snr_c = float(np.median(rows[label][0])), float(np.mean(rows[label][1]))
-        noise_c = float(np.mean(rows[label][2]))
-        by_snr = next((spp for spp in IPM_SPP if np.mean(rows[f"{IPM} {spp}"][1]) >= snr_c),
-                      None)
-        by_noise = next((spp for spp in IPM_SPP
-                         if np.mean(rows[f"{IPM} {spp}"][2]) <= noise_c), None)
-        for what, spp in (("detail SNR", by_snr), ("noise level", by_noise)):
+        t_c = float(np.median(rows[label][0]))
+        for what, column, rising in (("detail SNR", 1, True), ("noise level", 2, False)):
+            target = float(np.mean(rows[label][column]))
+            ipm = [float(np.mean(rows[f"{IPM} {spp}"][column])) for spp in IPM_SPP]
+            reached = [v >= target if rising else v <= target for v in ipm]
+            spp = IPM_SPP[reached.index(True)] if any(reached) else None
             if spp is None:
                 verdicts.append(f"- {label} ({t_c:.1f} s): no sample count of ipm's grid "
                                 f"reaches its {what}.")
                 continue
             t = float(np.median(rows[f"{IPM} {spp}"][0]))
-            verdicts.append(f"- {label} ({t_c:.1f} s), equal {what}: ipm at {spp} spp, "
-                            f"{t:.2f} s, **{t_c / t:.0f}x** faster.")
+            line = (f"- {label} ({t_c:.1f} s), equal {what}: ipm at {spp} spp, {t:.2f} s, "
+                    f"**{t_c / t:.0f}x** faster")
+            t_i = interpolated_time(ipm_times, ipm, target, rising)
+            verdicts.append(line + (f"; interpolated to exactly its {what}: {t_i:.2f} s, "
+                                    f"{t_c / t_i:.1f}x." if t_i else "."))
     text = (markdown_header("ipm beside Blender Cycles", COMMAND, "mitsuba", "drjit") + "\n"
             + f"{len(yarns)} yarns (the guided prior's first draws, seed 0), 800x240 px "
             f"(0.025 mm per pixel), {threads} threads each; times per render (medians) include "

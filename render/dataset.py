@@ -168,15 +168,15 @@ def make_sample(folder: str, opts: GenerateOptions, index: int) -> dict[str, Any
     from ipm.render.renderer import save_png
 
     plan = sample_plan(opts, index)
-    image = _renderer.render(plan.params, plan.fiber_seed, opts.scale, plan.spp,
-                             plan.render_seed, plan.photometric)
+    spp = _renderer.sample_count(opts.scale, plan.spp)
+    image = _renderer.render(plan.params, plan.fiber_seed, opts.scale, spp, plan.render_seed,
+                             plan.photometric)
     save_png(Path(folder, image_name(index)), image)
     width, height = frame_size(opts.scale)
     return {"index": index, "image": image_name(index), "split": opts.split,
             "params": plan.params.to_dict(), "seed": plan.fiber_seed,
-            "render_seed": plan.render_seed, "scale": opts.scale,
-            "spp": _renderer.sample_count(opts.scale, plan.spp),
-            "width": width, "height": height, "pixel_size_mm": pixel_size_mm(opts.scale),
+            "render_seed": plan.render_seed, "scale": opts.scale, "spp": spp, "width": width,
+            "height": height, "pixel_size_mm": pixel_size_mm(opts.scale),
             "photometric": plan.photometric.to_dict(), "variant": _renderer.variant}
 
 

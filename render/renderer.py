@@ -101,9 +101,15 @@ class Renderer:
     def sample_count(self, scale: float, spp: int) -> int:
         """The samples per pixel the scene's sampler takes when asked for ``spp``: multijitter
         rounds up to a product of two near-equal integers (7 -> 8, 13 -> 15), orthogonal to a
-        prime square."""
+        prime square.  Rendering with the count this returns logs no rounding warning."""
         sampler = self._scene(scale)[0].sensors()[0].sampler()
-        sampler.set_sample_count(spp)  # every render sets its own count again
+        logger = self.mi.Thread.thread().logger()
+        level = logger.log_level()
+        logger.set_log_level(self.mi.LogLevel.Error)
+        try:
+            sampler.set_sample_count(spp)  # every render sets its own count again
+        finally:
+            logger.set_log_level(level)
         return int(sampler.sample_count())
 
     def render_fibers(self, fibers: FiberSet, color: tuple[float, float, float], scale: float,

@@ -120,3 +120,13 @@ def test_records_are_sorted_and_carry_their_fiber_seed(heldout):
     records = load_records(heldout, TINY.count)
     assert [r.image.name for r in records] == sorted(r.image.name for r in records)
     assert all(isinstance(r.seed, int) for r in records)
+
+
+def test_cycles_verdict_interpolates_between_the_grid_points_around_the_target():
+    from ipm.benchmarks.blender_compare import interpolated_time
+
+    # noise falling as 1/time: the target halfway (in log) between two points
+    assert interpolated_time([1, 2, 4], [0.04, 0.02, 0.01], 0.01 * 2 ** 0.5, rising=False) \
+        == pytest.approx(2 * 2 ** 0.5)
+    assert interpolated_time([1, 4], [1.0, 4.0], 2.0, rising=True) == pytest.approx(2.0)
+    assert interpolated_time([1, 2], [0.04, 0.02], 0.05, rising=False) is None  # off the grid

@@ -12,8 +12,8 @@ set -euo pipefail
 DATA="${1:-data}"; RUNS="${2:-runs}"; REAL="${3:-../shared/real-yarns}"; EPOCHS="${4:-8}"
 # ipm generate resumes: a finished set is left as it is, a partial one is completed
 mkdir -p "$DATA"
-ipm generate --out "$DATA/train" --count 2000 --seed 0 --scale 0.25 --spp 8
-ipm generate --out "$DATA/val" --count 200 --seed 1 --split val --scale 0.25 --spp 8
+ipm generate --out "$DATA/train" --count 2000 --seed 0 --scale 0.25 --spp 4-24
+ipm generate --out "$DATA/val" --count 200 --seed 1 --split val --scale 0.25 --spp 4-24
 common=(--nets raw --epochs "$EPOCHS" --data "$DATA/train" --val "$DATA/val")
 real=(--real "$REAL" --real-pixel-size 0.0085 --real-invert)
 run() { OMP_NUM_THREADS=1 ipm train --preset "$1" --out "$RUNS/$1" "${common[@]}" "${@:2}"; }

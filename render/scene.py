@@ -27,12 +27,13 @@ y -> world z: a cyclic permutation, so a rotation).
   Sample positions are stratified (Mitsuba's ``multijitter`` sampler): a fiber thinner than
   a pixel makes coverage the main noise, and stratified positions estimate it better than
   independent ones.  Measured (``python -m ipm.benchmarks.render_speed``): at 800 x 240 px
-  and 64 spp a noise of 2.6 against 3.9 8-bit levels with ``independent`` in the same time;
-  at the dataset's scale 0.25, 6 spp (10.8 levels) are cleaner than the 8 independent spp
-  the shipped nets were first trained on (12.1), in less time.
+  and 64 spp a noise of 2.1 against 3.0 8-bit levels with ``independent`` in the same time;
+  at the dataset's scale 0.25, 6 spp (9.1 levels) are cleaner than 8 independent spp (9.7),
+  in less time.
 * Lights are picked for next-event estimation by :data:`LIGHT_WEIGHTS`, not with Mitsuba's
-  equal probability: the same expected image with less noise, about a third fewer samples
-  for the same noise level (``python -m ipm.benchmarks.noise_levers``).
+  equal probability: the same expected image with a third less noise variance, so a third
+  fewer samples for the same noise (800 x 240 px: 0.0205 -> 0.0166 at 16 spp, 0.0130 ->
+  0.0105 at 36 spp; ``python -m ipm.benchmarks.noise_levers``).
 * Cross-sections: Mitsuba's curves are round; each fiber gets the radius sqrt(t_x t_y) of
   the circle with its ellipse's area (:meth:`ipm.FiberSet.round_radii`), so the fiber
   volume, and with it how much a ply of ``m`` fibers fills, is kept.  Seen from random

@@ -239,15 +239,39 @@ def test_shipped_sigma_is_the_validation_mae_as_a_gaussian_std():
     assert sigma["R_ply"] == pytest.approx(mae * np.sqrt(np.pi / 2)) and sigma["R_ply"] > 0
 
 
+@pytest.fixture(scope="module")
+def two_scale_models(tmp_path_factory):
+    """The shipped models plus ``m`` and ``alpha`` at input scale 0.5 (0.02 mm per pixel), as
+    a user's ensemble with nets at two scales (their weights: the 0.25 nets', which a
+    ResNet takes at any input size; their validation error halved, to tell them apart)."""
+    import json
+    import shutil
+
+    from ipm.nets.ensemble import SHIPPED
+
+    folder = tmp_path_factory.mktemp("two-scale") / "models"
+    shutil.copytree(SHIPPED, folder)
+    manifest = json.loads((folder / "ensemble.json").read_text())
+    for name in ("m", "alpha"):
+        shutil.copytree(folder / name, folder / f"{name}-0.5")
+        info = json.loads((folder / name / "model.json").read_text())
+        info["config"]["input_scale"] = 0.5
+        info["val"]["mae"][name] /= 2
+        (folder / f"{name}-0.5" / "model.json").write_text(json.dumps(info))
+        manifest["nets"].append(f"{name}-0.5")
+    (folder / "ensemble.json").write_text(json.dumps(manifest))
+    return folder
+
+
 @pytest.mark.parametrize("pixel_size, m_net", [(0.01, "m-0.5"), (0.02, "m-0.5"),
                                                (0.04, "m"), (0.1, "m")])
-def test_shipped_ensemble_picks_the_finest_net_the_photo_supplies(pixel_size, m_net):
-    """m and alpha ship at two input scales: a photo of 0.02 mm per pixel or finer gets the
-    0.02 mm nets, a coarser one the 0.04 mm nets (upsampling would blur it), and every
+def test_ensemble_picks_the_finest_net_the_photo_supplies(two_scale_models, pixel_size, m_net):
+    """Nets of one parameter at two input scales: a photo of 0.02 mm per pixel or finer gets
+    the 0.02 mm nets, a coarser one the 0.04 mm nets (upsampling would blur it), and every
     parameter is decided by one net."""
     from ipm.nets.ensemble import Ensemble
 
-    ens = Ensemble.load(None)
+    ens = Ensemble.load(two_scale_models)
     chosen = ens.chosen(pixel_size)
     assert m_net in chosen and m_net.replace("m", "alpha") in chosen
     decided = [k for net in chosen.values() for k in net.config.spec.decides]

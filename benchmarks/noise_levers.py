@@ -37,7 +37,7 @@ from ipm.render.variant import mitsuba
 
 COMMAND = "python -m ipm.benchmarks.noise_levers --out benchmarks/results/noise_levers.md"
 #: Cycles, the paper's Principled Hair BSDF, 64 samples: benchmarks/results/blender_compare.md
-CYCLES_SECONDS, CYCLES_NOISE = 37.08, 0.0141
+CYCLES_SECONDS, CYCLES_NOISE = 33.91, 0.0141
 #: Each lamp's sampling weight by its share of the light: its radiance share times its solid
 #: angle seen from the yarn (the soft boxes' sides and distances are equal), the room light
 #: by its pi sr of cosine-weighted sky against a soft box's ~0.26 sr.

@@ -139,6 +139,8 @@ class SamplePlan:
 
 
 def sample_plan(opts: GenerateOptions, index: int) -> SamplePlan:
+    """The plan of sample ``index``; the count is the one asked of the sampler, which may
+    round it up (:meth:`ipm.render.renderer.Renderer.sample_count`)."""
     s = sample_seeds(opts.seed, opts.split, index)
     spp = opts.spp
     if opts.spp_max is not None:

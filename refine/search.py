@@ -41,13 +41,15 @@ ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_
 class SearchOptions:
     """params: continuous parameters to search.  By default only alpha_ply, with DIRECT-L
     (a global search of the box) and a budget of 30: on 30 held-out photos (``ipm compare
-    data/test --count 30``) it lowered the MAE of alpha_ply by 28% with the current nets
-    (4.2% -> 3.0% of its range, median 3.4% -> 0.4%; docs/compare; 26% before the loss had
-    its ``stripes`` group) and by 40% with the first ones (4.0% -> 2.4%;
+    data/test --count 30``) it lowered the MAE of alpha_ply by 34% with the current nets
+    and scene (2.7% -> 1.8% of its range, median 1.9% -> 0.5%, 6 of 30 made worse;
+    docs/compare), by 28% with the nets trained on one noise level (4.2% -> 3.0%; 26% before
+    the loss had its ``stripes`` group) and by 40% with the first ones (4.0% -> 2.4%;
     docs/compare-alpha_ply); BOBYQA at the same budget on those 30 left it at 4.0% -> 4.1%
     (docs/compare-alpha_ply-bobyqa): the autocorrelation has side minima in alpha_ply that
-    trap a local search.  Of the 7 of 30 it made worse, the 2 looked at had the nets' n or
-    m and ply radii off, and there the loss has no minimum at the true alpha_ply.  Searched
+    trap a local search.  Of the 7 of 30 the one-noise-level run made worse, the 2 looked at
+    had the nets' n or m and ply radii off, and there the loss has no minimum at the true
+    alpha_ply.  Searched
     jointly with alpha_ply, R_ply moved away from the truth (the core profile trades R_ply
     against the ply radii), and r_y alone did too (4.0% -> 5.8%, docs/compare-r_y); the loss
     cannot see alpha (docs/identifiability.md).  The other parameters keep the nets' values.

@@ -133,17 +133,20 @@ def test_scene_shapes_keep_the_dict_order(renderer):
     assert [s.id() for s in scene.shapes()] == ["yarn", "backdrop", "key_left", "key_right"]
 
 
+def noise_and_mean(r: Renderer, spp: int) -> tuple[float, np.ndarray]:
+    """Pixel noise (std of the difference of two sampler seeds) and the per-channel mean of
+    the golden preset rendered by ``r`` at scale 0.2."""
+    a, b = (r.render(preset("golden"), seed=1, scale=0.2, spp=spp, render_seed=s)
+            for s in (1, 2))
+    return float(np.std(a - b)), a.mean(axis=(0, 1))
+
+
 def test_stratified_samples_are_cleaner_than_independent(renderer):
     """The scene's multijitter sampler: less pixel noise than independent samples at the
     same count (fiber coverage of a pixel is estimated better), same mean image."""
     independent = Renderer(options=SceneOptions(sampler="independent"))
-    p = preset("golden")
-
-    def noise_and_mean(r):
-        a, b = (r.render(p, seed=1, scale=0.2, spp=4, render_seed=s) for s in (1, 2))
-        return np.std(a - b), a.mean()
-
-    (n_mj, m_mj), (n_ind, m_ind) = noise_and_mean(renderer), noise_and_mean(independent)
+    (n_mj, m_mj), (n_ind, m_ind) = noise_and_mean(renderer, 4), noise_and_mean(independent, 4)
+    m_mj, m_ind = m_mj.mean(), m_ind.mean()
     assert n_mj < 0.9 * n_ind, (n_mj, n_ind)
     assert abs(m_mj - m_ind) < 0.03 * m_ind
     with pytest.raises(UserError, match="unknown sampler 'sobol'"):
@@ -154,13 +157,7 @@ def test_weighted_light_choice_is_cleaner_than_uniform(renderer):
     """The scene's light sampling weights: less noise than picking the lights with equal
     probability, the same expected image."""
     uniform = Renderer(options=SceneOptions(light_sampling="uniform"))
-    p = preset("golden")
-
-    def noise_and_mean(r):
-        a, b = (r.render(p, seed=1, scale=0.2, spp=8, render_seed=s) for s in (1, 2))
-        return np.std(a - b), a.mean(axis=(0, 1))
-
-    (n_w, m_w), (n_u, m_u) = noise_and_mean(renderer), noise_and_mean(uniform)
+    (n_w, m_w), (n_u, m_u) = noise_and_mean(renderer, 8), noise_and_mean(uniform, 8)
     assert n_w < 0.9 * n_u, (n_w, n_u)
     assert np.allclose(m_w, m_u, rtol=0.01), (m_w, m_u)
     with pytest.raises(UserError, match="unknown light sampling 'random'"):

@@ -130,3 +130,30 @@ def test_cycles_verdict_interpolates_between_the_grid_points_around_the_target()
         == pytest.approx(2 * 2 ** 0.5)
     assert interpolated_time([1, 4], [1.0, 4.0], 2.0, rising=True) == pytest.approx(2.0)
     assert interpolated_time([1, 2], [0.04, 0.02], 0.05, rising=False) is None  # off the grid
+
+
+def test_cycles_verdict_matches_each_yarn_to_its_own_cycles_noise():
+    from ipm.benchmarks.blender_compare import (CYCLES, IPM, IPM_SPP, NOISE, Rows, report,
+                                                verdict)
+
+    # ipm: noise c / sqrt(spp) in a * spp seconds; Cycles: a clean fast yarn, a noisy slow one
+    rows = Rows()
+    rows["cycles"] = [([20.0, 20.0], 1.0, 0.01), ([40.0, 40.0], 1.0, 0.02)]
+    for spp in IPM_SPP:
+        rows[f"{IPM} {spp}"] = [([0.05 * spp] * 2, 1.0, 0.04 / spp ** 0.5),
+                                ([0.1 * spp] * 2, 1.0, 0.1 / spp ** 0.5)]
+    spp, t, t_i = verdict(rows, "cycles", NOISE, yarn=0)
+    assert (spp, t, t_i) == (16, pytest.approx(0.8), pytest.approx(0.8))  # 25x
+    spp, t, t_i = verdict(rows, "cycles", NOISE, yarn=1)
+    assert (spp, t, t_i) == (25, pytest.approx(2.5), pytest.approx(2.5))  # 16x
+    # pooled: mean noise 0.07 / sqrt(spp) against Cycles' mean 0.015 -> between 20 and 25 spp
+    spp, t, t_i = verdict(rows, "cycles", NOISE)
+    assert spp == 25 and rows.seconds("cycles") == 30.0
+    assert rows.seconds(f"{IPM} 20") < t_i < rows.seconds(f"{IPM} 25")
+    # the report states both yarns' speed-ups and their median
+    for label in CYCLES:
+        rows[label] = rows["cycles"]
+    del rows["cycles"]
+    text = report(rows, fibers=[100, 500], threads=2)
+    assert "median **20.5x** interpolated (16.0-25.0x over 2 of 2 yarns)" in text
+    assert "0 (100 fibers): 25.0x, 1 (500 fibers): 16.0x" in text

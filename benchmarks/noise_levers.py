@@ -36,7 +36,8 @@ from ipm.render.scene import SceneOptions
 from ipm.render.variant import mitsuba
 
 COMMAND = "python -m ipm.benchmarks.noise_levers --out benchmarks/results/noise_levers.md"
-#: Cycles, the paper's Principled Hair BSDF, 64 samples: benchmarks/results/blender_compare.md
+#: Cycles, the paper's Principled Hair BSDF, 64 samples, on this benchmark's two yarns (the
+#: first two of blender_compare's; its run of commit db0b077, before it took six)
 CYCLES_SECONDS, CYCLES_NOISE = 33.91, 0.0141
 #: Each lamp's sampling weight by its share of the light: its radiance share times its solid
 #: angle seen from the yarn (the soft boxes' sides and distances are equal), the room light
@@ -118,7 +119,7 @@ def main() -> None:
             + f"\n{args.yarns} yarns (the guided prior's first draws, seed 0), 800x240 px, "
             "all cores; the render call only (no scene update), median over yarns and "
             f"seeds; Cycles: {CYCLES_SECONDS} s at noise {CYCLES_NOISE} "
-            "(benchmarks/results/blender_compare.md).\n\n" + "\n".join(levers)
+            "(blender_compare on these two yarns, commit db0b077).\n\n" + "\n".join(levers)
             + f"\n\n## Light sampling weights at {SWEEP_SPP} spp (multijitter)\n\n"
             "The noise of the same renders with other weights for the lights; the scene's "
             f"are {S.LIGHT_WEIGHTS}.\n\n" + "\n".join(weights) + "\n")

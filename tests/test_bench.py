@@ -133,8 +133,7 @@ def test_cycles_verdict_interpolates_between_the_grid_points_around_the_target()
 
 
 def test_cycles_verdict_matches_each_yarn_to_its_own_cycles_noise():
-    from ipm.benchmarks.blender_compare import (CYCLES, IPM, IPM_SPP, NOISE, Rows, report,
-                                                verdict)
+    from ipm.benchmarks.blender_compare import CYCLES, IPM, IPM_SPP, NOISE, Rows, report, verdict
 
     # ipm: noise c / sqrt(spp) in a * spp seconds; Cycles: a clean fast yarn, a noisy slow one
     rows = Rows()

@@ -2,9 +2,11 @@
 never used for training: per-parameter MAE in raw units and in % of the parameter's
 interval, beside the predict-the-mean baseline (the mean training label, stored with each
 net) and the paper's validation table; ply-count and thickness-class accuracy beside the
-majority class.
+majority class.  ``--blur-mm`` blurs every photo first (a Gaussian of that sigma in mm, in
+linear light: :func:`ipm.photo.defocus`), to see how the nets hold up on a photo with the
+defocus a render lacks.
 
-    python -m ipm.benchmarks.nets_accuracy --data data/test [--models DIR]
+    python -m ipm.benchmarks.nets_accuracy --data data/test [--models DIR] [--blur-mm S]
         [--out benchmarks/results/nets_accuracy.md]
 """
 
@@ -18,7 +20,7 @@ from ipm.benchmarks.machine import markdown_header, publish
 from ipm.nets.data import read_manifest
 from ipm.nets.ensemble import Ensemble
 from ipm.params import PAPER_INTERVALS, PARAM_ORDER, THICKNESS_CLASSES
-from ipm.photo import read_image
+from ipm.photo import defocus, linear_to_srgb, read_image, srgb_to_linear
 
 #: The paper's validation errors of the parameter-specific networks (Table "Validation loss
 #: of different networks").
@@ -32,11 +34,19 @@ def main() -> None:
     ap.add_argument("--data", required=True, help="held-out set (`ipm generate --out`)")
     ap.add_argument("--models", default=None, help="default: the shipped models")
     ap.add_argument("--crops", type=int, default=3)
+    ap.add_argument("--blur-mm", type=float, default=0.0, help="sigma of a Gaussian blur of "
+                    "every photo, in mm at the yarn")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     ens = Ensemble.load(args.models)
     records = read_manifest(args.data)
-    pred = [ens.predict(read_image(r.image), r.pixel_size_mm, args.crops) for r in records]
+
+    def photo(r) -> np.ndarray:
+        img = read_image(r.image)
+        sigma = args.blur_mm / r.pixel_size_mm
+        return linear_to_srgb(defocus(srgb_to_linear(img), sigma)) if sigma > 0 else img
+
+    pred = [ens.predict(photo(r), r.pixel_size_mm, args.crops) for r in records]
     true = [r.params for r in records]
     pairs = list(zip(pred, true, strict=True))
     base = ens.mean_prediction(records[0].pixel_size_mm)  # a dataset has one scale
@@ -60,11 +70,14 @@ def main() -> None:
     rows += ["", f"Ply count n: accuracy {100 * acc_n:.1f}% (majority class "
              f"{100 * maj_n:.1f}%).  Fiber thickness class: accuracy {100 * acc_t:.1f}% "
              f"(majority class {100 * maj_t:.1f}%).", "",
-             f"{len(records)} images from `{args.data}`; models `{ens.folder}`; "
-             f"{args.crops} crops per net.  Bold: the continuous raw-yarn parameters, which "
-             "must beat the baseline by at least 40%."]
-    command = "python -m ipm.benchmarks.nets_accuracy --data DIR --out " \
-              "benchmarks/results/nets_accuracy.md"
+             f"{len(records)} images from `{args.data}`"
+             + (f", blurred by a Gaussian of sigma {args.blur_mm:g} mm" if args.blur_mm else "")
+             + f"; models `{ens.folder}`; {args.crops} crops per net.  Bold: the continuous "
+             "raw-yarn parameters, which must beat the baseline by at least 40%."]
+    command = " ".join(["python -m ipm.benchmarks.nets_accuracy --data", args.data]
+                       + (["--models", args.models] if args.models else [])
+                       + (["--blur-mm", f"{args.blur_mm:g}"] if args.blur_mm else [])
+                       + (["--out", args.out] if args.out else []))
     text = (markdown_header("Nets accuracy on held-out renders", command, "torch") + "\n"
             + "\n".join(rows) + "\n")
     publish(text, args.out)

@@ -136,6 +136,19 @@ def linear_to_srgb(x: np.ndarray) -> np.ndarray:
                     1.055 * x ** (1 / 2.4) - 0.055).astype(np.float32)
 
 
+def defocus(image: np.ndarray, sigma_px: float) -> np.ndarray:
+    """A linear-light image (H, W, C) blurred by a Gaussian of ``sigma_px`` pixels: the
+    defocus and lens blur a real capture has and a render does not (a yarn is mm deep, a
+    1:1 macro lens's depth of field a fraction of that).  Blurs light, so pass linear
+    values, not sRGB."""
+    if sigma_px <= 0:
+        return image
+    from skimage.filters import gaussian
+
+    return gaussian(image, sigma=sigma_px, channel_axis=-1, mode="nearest",
+                    preserve_range=True).astype(np.float32)
+
+
 def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
     """Write an sRGB image ((H, W, 3) float in [0, 1] or uint8) as an RGB PNG, atomically."""
     from ipm.io import atomic_path

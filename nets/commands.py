@@ -51,6 +51,9 @@ def train(
                                                           "photos in mm")] = None,
     real_invert: Annotated[bool, typer.Option("--real-invert", help="invert the --real "
                                               "photos (backlit: dark yarn on light)")] = False,
+    blur: Annotated[float | None, typer.Option(help="blur each training crop by a Gaussian of "
+                                               "sigma uniform in [0, BLUR] input pixels "
+                                               "(a photo's defocus; 0 = off)")] = None,
     init: Annotated[Path | None, typer.Option(help="start each net from the trained net of "
                                               "the same name in this folder (fine-tuning; "
                                               "e.g. the shipped models)")] = None,
@@ -62,7 +65,8 @@ def train(
     given = dict(encoder=encoder, width=width, input_scale=input_scale, epochs=epochs,
                  batch_size=batch_size, lr=lr, schedule=schedule, lambda_recon=lambda_recon,
                  lambda_latent=lambda_latent, steps_per_epoch=steps_per_epoch, seed=seed,
-                 device=device, workers=workers, real_pixel_size=real_pixel_size, init=init)
+                 device=device, workers=workers, real_pixel_size=real_pixel_size, init=init,
+                 blur_px=blur)
     options = {k: v for k, v in given.items() if v is not None}
     options.update(data=data, val=val, out=out, preset=preset, real=real,
                    real_invert=real_invert,

@@ -72,6 +72,7 @@ class TrainConfig:
     lambda_latent: float = 0.1
     sma_batches: int = 5
     exposure_ev: float = 0.5
+    blur_px: float = 0.0
     steps_per_epoch: int | None = None
     seed: int = 0
     device: str = "cpu"
@@ -101,6 +102,7 @@ class TrainConfig:
                   ("lambda_latent", self.lambda_latent, self.lambda_latent >= 0),
                   ("SMA batches", self.sma_batches, self.sma_batches >= 1),
                   ("exposure range", self.exposure_ev, self.exposure_ev >= 0),
+                  ("blur", self.blur_px, 0 <= self.blur_px <= 8),
                   ("steps per epoch", self.steps_per_epoch,
                    self.steps_per_epoch is None or self.steps_per_epoch >= 1),
                   ("workers", self.workers, self.workers >= 0),

@@ -23,23 +23,20 @@ from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.nets.tasks import Task
 from ipm.params import YarnParams
-from ipm.photo import load_photo
+from ipm.photo import defocus, linear_to_srgb, load_photo, srgb_to_linear
 
 MANIFEST = "manifest.jsonl"
 PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
 #: Frames are cached in memory as uint8 up to this many bytes per dataset.
 CACHE_BYTES = 6 * 2**30
 
-_SRGB = np.arange(256, dtype=np.float32) / 255
-_LINEAR = np.where(_SRGB <= 0.04045, _SRGB / 12.92, ((_SRGB + 0.055) / 1.055) ** 2.4)
+_LINEAR = srgb_to_linear(np.arange(256, dtype=np.float32) / 255)
 
 
 def exposure_lut(ev: float) -> np.ndarray:
     """(256,) float32 in [-1, 1]: 8-bit sRGB -> net input after scaling linear light by
     2**ev (a brighter or darker exposure of the same scene)."""
-    lin = np.clip(_LINEAR * 2.0 ** ev, 0, 1)
-    srgb = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1 / 2.4) - 0.055)
-    return (srgb * 2 - 1).astype(np.float32)
+    return linear_to_srgb(_LINEAR * 2.0 ** ev) * 2 - 1
 
 
 def to_input(img: np.ndarray) -> torch.Tensor:
@@ -134,12 +131,15 @@ class Frames:
 class Crops(Dataset):
     """``(x, y)`` pairs: x ``(3, H, W)`` in [-1, 1], a crop of frame i; y the task's label
     (or the index for unlabelled frames).  Training draws a random crop and exposure per
-    (seed, epoch, i); evaluation takes the centre crop at the rendered exposure."""
+    (seed, epoch, i), and with ``blur_px`` > 0 a Gaussian blur of sigma uniform in [0,
+    blur_px] input pixels (:func:`ipm.photo.defocus`, in linear light); evaluation takes the
+    centre crop at the rendered exposure, unblurred."""
 
     def __init__(self, frames: Frames, crop: tuple[int, int], task: Task | None = None,
-                 train: bool = True, seed: int = 0, exposure_ev: float = 0.5) -> None:
+                 train: bool = True, seed: int = 0, exposure_ev: float = 0.5,
+                 blur_px: float = 0.0) -> None:
         self.frames, self.crop, self.task, self.train = frames, crop, task, train
-        self.seed, self.exposure_ev, self.epoch = seed, exposure_ev, 0
+        self.seed, self.exposure_ev, self.blur_px, self.epoch = seed, exposure_ev, blur_px, 0
         self._targets = (None if task is None or frames.labels is None
                          else [task.target(p) for p in frames.labels])
 
@@ -152,13 +152,21 @@ class Crops(Dataset):
     def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor]:
         img = self.frames[i]
         (ch, cw), (h, w) = self.crop, img.shape[:2]
+        ev, sigma = 0.0, 0.0
         if self.train:
             rng = np.random.default_rng([self.seed, self.epoch, i])
             top, left = int(rng.integers(0, h - ch + 1)), int(rng.integers(0, w - cw + 1))
-            lut = exposure_lut(float(rng.uniform(-self.exposure_ev, self.exposure_ev)))
+            ev = float(rng.uniform(-self.exposure_ev, self.exposure_ev))
+            # drawn last, and only when asked: runs without blur keep their crops
+            sigma = float(rng.uniform(0, self.blur_px)) if self.blur_px > 0 else 0.0
         else:
-            top, left, lut = (h - ch) // 2, (w - cw) // 2, exposure_lut(0.0)
-        x = torch.from_numpy(lut[img[top:top + ch, left:left + cw]].transpose(2, 0, 1).copy())
+            top, left = (h - ch) // 2, (w - cw) // 2
+        patch = img[top:top + ch, left:left + cw]
+        if sigma > 0:
+            x = linear_to_srgb(defocus(_LINEAR[patch], sigma) * 2.0 ** ev) * 2 - 1
+        else:
+            x = exposure_lut(ev)[patch]
+        x = torch.from_numpy(x.transpose(2, 0, 1).copy())
         y = torch.as_tensor(self._targets[i] if self._targets is not None else i)
         return x, y
 

@@ -20,7 +20,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -186,7 +186,8 @@ def train_net(name: str, cfg: TrainConfig, train_frames: Frames, val_frames: Fra
                           cfg.sma_batches)
     optimizer = torch.optim.Adam(net.parameters(), lr=cfg.lr)
 
-    train_crops = Crops(train_frames, ncfg.crop, task, True, cfg.seed, cfg.exposure_ev)
+    train_crops = Crops(train_frames, ncfg.crop, task, True, cfg.seed, cfg.exposure_ev,
+                        cfg.blur_px)
     val_crops = Crops(val_frames, ncfg.crop, task, False)
     train_targets = np.stack([task.target(p) for p in train_frames.labels])
     val_targets = np.stack([task.target(p) for p in val_frames.labels])
@@ -325,7 +326,9 @@ def _check_resume(cfg: TrainConfig) -> None:
     if not path.is_file():
         return
     old, new = read_json(path), cfg.to_dict()
-    changed = sorted(k for k in new if k not in RESUMABLE and old.get(k) != new[k])
+    # an option newer than the run counts as its default there
+    defaults = {f.name: f.default for f in fields(TrainConfig)}
+    changed = sorted(k for k in new if k not in RESUMABLE and old.get(k, defaults[k]) != new[k])
     if changed:
         raise UserError(f"{cfg.out} holds a run with other options ({', '.join(changed)}); "
                         "use another --out or the same options to resume")

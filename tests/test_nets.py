@@ -216,6 +216,44 @@ def test_exposure_lut():
     assert exposure_lut(0.5)[128] > exposure_lut(0.0)[128] > exposure_lut(-0.5)[128]
 
 
+class _Frames:
+    """Stand-in for nets.data.Frames: one 8-bit frame of fine stripes over a ramp along x, so
+    a crop's mean tells where it was cut and its fine detail how blurred it is."""
+
+    labels = None
+
+    def __init__(self) -> None:
+        x = np.arange(200)
+        ramp = 40 + x, 60 * ((x // 2) % 2)
+        row = np.clip(ramp[0] + ramp[1], 0, 255)
+        self.img = np.repeat(np.tile(row, (80, 1))[..., None], 3, axis=2).astype(np.uint8)
+
+    def __len__(self) -> int:
+        return 4
+
+    def __getitem__(self, i: int) -> np.ndarray:
+        return self.img
+
+
+def test_blur_augmentation_blurs_the_same_crop_and_exposure():
+    from ipm.nets.data import Crops
+    from ipm.photo import srgb_to_linear
+
+    frames = _Frames()
+    sharp = Crops(frames, (32, 64), seed=3)
+    blurred = Crops(frames, (32, 64), seed=3, blur_px=3.0)
+    for i in range(len(frames)):
+        a, b = sharp[i][0].numpy(), blurred[i][0].numpy()
+        detail = [np.abs(np.diff(x, axis=2)).mean() for x in (a, b)]
+        assert detail[1] < 0.6 * detail[0]
+        # blurring keeps the light: the same crop position (ramp) and exposure as unblurred
+        light = [srgb_to_linear((x + 1) / 2).mean() for x in (a, b)]
+        assert light[1] == pytest.approx(light[0], rel=0.03)
+    # evaluation crops are never blurred
+    evaluation = Crops(frames, (32, 64), train=False, blur_px=3.0)
+    assert torch.equal(evaluation[0][0], Crops(frames, (32, 64), train=False)[0][0])
+
+
 def test_learning_rate_schedule(tmp_path):
     from ipm.nets.config import TrainConfig
     from ipm.nets.train import learning_rate

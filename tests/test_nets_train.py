@@ -133,6 +133,13 @@ def test_resume_continues_and_refuses_other_options(data, tmp_path):
     assert state["epoch"] in (1, 2)
     with pytest.raises(UserError, match="other options .*lr"):
         train(cfg.replace(lr=0.5), log=lambda line: None)
+    with pytest.raises(UserError, match="other options .*blur_px"):
+        train(cfg.replace(epochs=3, blur_px=1.0), log=lambda line: None)
+    # a run made before an option existed resumes with that option at its default
+    saved = json.loads((tmp_path / "train.json").read_text())
+    del saved["blur_px"]
+    (tmp_path / "train.json").write_text(json.dumps(saved))
+    train(cfg.replace(epochs=2), log=lambda line: None)
 
 
 def test_init_starts_from_trained_weights(trained, data, tmp_path):

@@ -215,7 +215,7 @@ def report(rows: Rows, fibers: list[int], threads: int) -> str:
     for name in rows:
         label, spp = (name, CYCLES_SAMPLES) if name in CYCLES else name.rsplit(" ", 1)
         table.append(f"| {label} | {spp} | {rows.seconds(name):.2f} | "
-                     f"{rows.measure(name, 1):.2f} | {rows.measure(name, 2):.4f} |")
+                     f"{rows.measure(name, SNR):.2f} | {rows.measure(name, NOISE):.4f} |")
     together, per_yarn = [], []
     for label in CYCLES:
         t_c = rows.seconds(label)

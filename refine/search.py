@@ -42,8 +42,9 @@ class SearchOptions:
     """params: continuous parameters to search.  By default only alpha_ply, with DIRECT-L
     (a global search of the box) and a budget of 30: on 30 held-out photos (``ipm compare
     data/test --count 30``) it lowered the MAE of alpha_ply by 34% with the current nets
-    and scene (2.7% -> 1.8% of its range, median 1.9% -> 0.5%, 6 of 30 made worse;
-    docs/compare), by 28% with the nets trained on one noise level (4.2% -> 3.0%; 26% before
+    and scene (2.9% -> 1.9% of its range, median 1.8% -> 0.3%, 8 of 30 made worse;
+    docs/compare), by 34% with the nets before blur augmentation (2.7% -> 1.8%, 6 of 30
+    worse), by 28% with the nets trained on one noise level (4.2% -> 3.0%; 26% before
     the loss had its ``stripes`` group) and by 40% with the first ones (4.0% -> 2.4%;
     docs/compare-alpha_ply); BOBYQA at the same budget on those 30 left it at 4.0% -> 4.1%
     (docs/compare-alpha_ply-bobyqa): the autocorrelation has side minima in alpha_ply that

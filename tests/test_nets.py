@@ -277,6 +277,27 @@ def test_shipped_sigma_is_the_validation_mae_as_a_gaussian_std():
     assert sigma["R_ply"] == pytest.approx(mae * np.sqrt(np.pi / 2)) and sigma["R_ply"] > 0
 
 
+def test_shipped_nets_hold_on_a_blurred_photo():
+    """A photo's defocus: the shipped nets, trained with blur augmentation, keep R_ply and m
+    on renders blurred by a pixel; the nets shipped before that (commit a046881) miss both
+    bounds by more than twice."""
+    from ipm.nets.ensemble import Ensemble
+    from ipm.params import PAPER_INTERVALS
+    from ipm.photo import defocus, linear_to_srgb
+    from ipm.prior import GuidedPrior
+    from ipm.render.renderer import Renderer
+
+    ens, renderer = Ensemble.load(None), Renderer()
+    errors = {"R_ply": [], "m": []}
+    for i, p in enumerate(GuidedPrior().sample_many(8, seed=20261201)):  # no training seed
+        photo = linear_to_srgb(defocus(renderer.render(p, i, 0.25, 8), 1.0))
+        q = ens.predict(photo, 0.04, 3)
+        for k, e in errors.items():
+            e.append(abs(getattr(q, k) - getattr(p, k))
+                     / (PAPER_INTERVALS[k].hi - PAPER_INTERVALS[k].lo))
+    assert np.mean(errors["R_ply"]) < 0.07 and np.mean(errors["m"]) < 0.2
+
+
 @pytest.fixture(scope="module")
 def two_scale_models(tmp_path_factory):
     """The shipped models plus ``m`` and ``alpha`` at input scale 0.5 (0.02 mm per pixel), as

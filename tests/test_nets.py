@@ -280,7 +280,7 @@ def test_shipped_sigma_is_the_validation_mae_as_a_gaussian_std():
 def test_shipped_nets_hold_on_a_blurred_photo():
     """A photo's defocus: the shipped nets, trained with blur augmentation, keep R_ply and m
     on renders blurred by a pixel; the nets shipped before that (commit a046881) miss both
-    bounds by more than twice."""
+    bounds, R_ply's by more than twice."""
     from ipm.nets.ensemble import Ensemble
     from ipm.params import PAPER_INTERVALS
     from ipm.photo import defocus, linear_to_srgb

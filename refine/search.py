@@ -50,10 +50,10 @@ class SearchOptions:
     (docs/compare-alpha_ply-bobyqa): the autocorrelation has side minima in alpha_ply that
     trap a local search.  Of the 7 of 30 the one-noise-level run made worse, the 2 looked at
     had the nets' n or m and ply radii off, and there the loss has no minimum at the true
-    alpha_ply.  Searched
-    jointly with alpha_ply, R_ply moved away from the truth (the core profile trades R_ply
-    against the ply radii), and r_y alone did too (4.0% -> 5.8%, docs/compare-r_y); the loss
-    cannot see alpha (docs/identifiability.md).  The other parameters keep the nets' values.
+    alpha_ply.  Searched jointly with alpha_ply, R_ply moved away from the truth (the core
+    profile trades R_ply against the ply radii), and r_y alone did too (4.0% -> 5.8%,
+    docs/compare-r_y); the loss cannot see alpha (docs/identifiability.md).  The other
+    parameters keep the nets' values.
 
     algorithm: an NLopt derivative-free algorithm.  budget: objective evaluations of the
     search (re-scoring comes on top).  time_s: wall-time bound of the search.  width:

@@ -46,7 +46,7 @@ def sweep(objective, truth, name: str) -> dict[str, dict]:
     """Per group: the sweep's argmin (fraction of the range), the spread across fiber seeds
     at the truth and the rise at +- 10 %."""
     iv = PAPER_INTERVALS[name]
-    span = iv.hi - iv.lo
+    span = iv.width
     steps, losses = [], []
     for d in STEPS:
         v = getattr(truth, name) + d * span

@@ -56,7 +56,7 @@ def main() -> None:
         if k in ("n", "t_x", "t_y"):
             continue
         iv = PAPER_INTERVALS[k]
-        span = iv.hi - iv.lo
+        span = iv.width
         mae = float(np.mean([abs(getattr(p, k) - getattr(t, k)) for p, t in pairs]))
         b = float(np.mean([abs(base[k] - getattr(t, k)) for t in true]))
         name = f"**{k}**" if k in RAW_CONTINUOUS else k

@@ -200,7 +200,7 @@ class YarnParams:
     # -- normalised vector (nets, optimiser) -------------------------------------------------
     def to_vector(self) -> np.ndarray:
         """(20,) float64 in [0, 1]: the paper's parameters in :data:`PARAM_ORDER`."""
-        return np.array([(getattr(self, k) - iv.lo) / (iv.hi - iv.lo)
+        return np.array([(getattr(self, k) - iv.lo) / iv.width
                          for k, iv in PAPER_INTERVALS.items()])
 
     @classmethod
@@ -212,7 +212,7 @@ class YarnParams:
             raise ParamError(f"expected a vector of {len(PARAM_ORDER)} values, got {v.shape}")
         vals: dict[str, Any] = {}
         for x, (k, iv) in zip(np.clip(v, 0, 1), PAPER_INTERVALS.items(), strict=True):
-            val = min(max(iv.lo + x * (iv.hi - iv.lo), iv.lo), iv.hi)  # rounding at the ends
+            val = min(max(iv.lo + x * iv.width, iv.lo), iv.hi)  # rounding at the ends
             vals[k] = int(round(val)) if iv.integer else float(val)
         extra = {} if base is None else {k: getattr(base, k) for k in (*EXTRA_INTERVALS, "color")}
         return cls(**vals, **extra)

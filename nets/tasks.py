@@ -62,7 +62,7 @@ class Task:
         for k, x in zip(self.params, np.clip(out, 0, 1), strict=True):
             iv = PAPER_INTERVALS[k]
             # min/max: lo + 1.0 * (hi - lo) can round past hi (alpha: -0.4759999...).
-            val = min(max(iv.lo + float(x) * (iv.hi - iv.lo), iv.lo), iv.hi)
+            val = min(max(iv.lo + float(x) * iv.width, iv.lo), iv.hi)
             vals[k] = int(round(val)) if iv.integer else val
         return vals
 

@@ -114,7 +114,7 @@ def errors(task: Task, outputs: np.ndarray, targets: np.ndarray) -> dict:
         return {"loss": loss, "accuracy": float(np.mean(outputs.argmax(1) == targets))}
     pred, true = raw_values(task, outputs), raw_values(task, targets)
     mae = np.abs(pred - true).mean(0)
-    span = np.array([PAPER_INTERVALS[k].hi - PAPER_INTERVALS[k].lo for k in task.params])
+    span = np.array([PAPER_INTERVALS[k].width for k in task.params])
     return {"loss": float(np.abs(outputs - targets).mean()),
             "mae": dict(zip(task.params, mae.tolist(), strict=True)),
             "mae_pct": dict(zip(task.params, (100 * mae / span).tolist(), strict=True))}

@@ -117,7 +117,7 @@ def search_box(start: YarnParams, names: tuple[str, ...], width: float,
     lo, hi = [], []
     for k in names:
         iv = PAPER_INTERVALS[k]
-        half = width * (iv.hi - iv.lo)
+        half = width * iv.width
         if sigma is not None:
             half = min(half, box_sigmas * sigma[k])
         v = getattr(start, k)

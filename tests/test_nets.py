@@ -294,7 +294,7 @@ def test_shipped_nets_hold_on_a_blurred_photo():
         q = ens.predict(photo, 0.04, 3)
         for k, e in errors.items():
             e.append(abs(getattr(q, k) - getattr(p, k))
-                     / (PAPER_INTERVALS[k].hi - PAPER_INTERVALS[k].lo))
+                     / PAPER_INTERVALS[k].width)
     assert np.mean(errors["R_ply"]) < 0.07 and np.mean(errors["m"]) < 0.2
 
 

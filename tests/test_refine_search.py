@@ -14,7 +14,7 @@ NAMES = ("alpha", "alpha_ply", "R_ply")
 
 def quadratic(p, seed):
     """Distance to TRUTH in units of the prior range, plus seed noise of 1e-4."""
-    d = [(getattr(p, k) - getattr(TRUTH, k)) / (PAPER_INTERVALS[k].hi - PAPER_INTERVALS[k].lo)
+    d = [(getattr(p, k) - getattr(TRUTH, k)) / PAPER_INTERVALS[k].width
          for k in NAMES]
     return float(np.sum(np.square(d))) + 1e-4 * (seed % 3)
 
@@ -29,7 +29,7 @@ def test_finds_the_minimum_from_a_perturbed_start(algorithm):
     assert res.improved and res.best_loss < res.start_loss
     for k in NAMES:
         iv = PAPER_INTERVALS[k]
-        assert abs(getattr(res.best, k) - getattr(TRUTH, k)) < 0.01 * (iv.hi - iv.lo), k
+        assert abs(getattr(res.best, k) - getattr(TRUTH, k)) < 0.01 * iv.width, k
     assert len(evals) == res.evaluations <= 150 and evals[-1][2] == min(res.trace)
     # the other fields are kept
     assert res.best.replace(**{k: getattr(start, k) for k in NAMES}) == start

@@ -8,8 +8,10 @@ time ipm would need for the noise of Cycles in the paper's setup follows from no
 being constant (noise falls as 1 / sqrt(samples)), and the speed-up is Cycles' measured
 time over it.  Levers, none of which changes the expected image:
 
-* how next-event estimation picks the lights: with equal probability (Mitsuba's default, the
-  scene's before 2026-12), by each lamp's share of the light, or by the scene's
+* the integrator: Mitsuba's ``path`` (the scene's until 2026-12-02) or the scene's
+  ``ipm_path`` (:mod:`ipm.render.integrator`, each lamp chosen by its reach at every vertex);
+* how ``path``'s next-event estimation picks the lights: with equal probability (Mitsuba's
+  default, the scene's before 2026-12), by each lamp's share of the light, or by the scene's
   :data:`~ipm.render.scene.LIGHT_WEIGHTS` (the room light rarely);
 * the ``orthogonal`` and ``ldsampler`` pixel samplers (they round the sample count up to a
   prime square and a power of two: the table gives the counts they used).
@@ -43,16 +45,19 @@ CYCLES_SECONDS, CYCLES_NOISE = 33.91, 0.0141
 #: angle seen from the yarn (the soft boxes' sides and distances are equal), the room light
 #: by its pi sr of cosine-weighted sky against a soft box's ~0.26 sr.
 POWER_WEIGHTS = {"key_left": 1.0, "key_right": 0.6, "room": 0.4}
-UNIFORM = SceneOptions(light_sampling="uniform")
+PATH = SceneOptions(integrator="path")
 #: label: (scene options, light weights replacing the scene's)
-LEVERS = {"equal light choice (the scene before 2026-12)": (UNIFORM, None),
-          "light weights by power": (S.DEFAULT_OPTIONS, POWER_WEIGHTS),
-          "as shipped (multijitter, the scene's light weights)": (S.DEFAULT_OPTIONS, None),
-          "orthogonal sampler, the scene's light weights": (SceneOptions(sampler="orthogonal"),
-                                                            None),
-          "ldsampler, the scene's light weights": (SceneOptions(sampler="ldsampler"), None)}
+LEVERS = {"path, equal light choice (the scene before 2026-12)":
+          (SceneOptions(integrator="path", light_sampling="uniform"), None),
+          "path, light weights by power": (PATH, POWER_WEIGHTS),
+          "path, the scene's light weights (the scene until 2026-12-02)": (PATH, None),
+          "path, orthogonal sampler": (SceneOptions(integrator="path", sampler="orthogonal"),
+                                       None),
+          "path, ldsampler": (SceneOptions(integrator="path", sampler="ldsampler"), None),
+          "as shipped: ipm_path, lamps chosen by reach (multijitter)": (S.DEFAULT_OPTIONS, None),
+          "ipm_path, orthogonal sampler": (SceneOptions(sampler="orthogonal"), None)}
 SPP = (16, 36)
-#: The light weights tried for the scene's, at SWEEP_SPP.
+#: The light weights tried for the scene's, with ``path``, at SWEEP_SPP.
 WEIGHT_SWEEP = [{"key_left": 1.0, "key_right": right, "room": room}
                 for right, room in ((0.6, 0.4), (0.6, 0.2), (0.6, 0.1), (0.6, 0.05), (0.6, 0.02),
                                     (0.4, 0.05), (0.8, 0.05), (1.0, 0.05))]
@@ -110,7 +115,7 @@ def main() -> None:
                               f"{at_cycles:.2f} | {CYCLES_SECONDS / at_cycles:.1f}x |")
                 print(levers[-1], flush=True)
         for w in WEIGHT_SWEEP:
-            (_, noise, _), = measure(mi, yarns, S.DEFAULT_OPTIONS, w, (SWEEP_SPP,),
+            (_, noise, _), = measure(mi, yarns, PATH, w, (SWEEP_SPP,),
                                      Path(tmp)).values()
             weights.append(f"| {w['key_left']} | {w['key_right']} | {w['room']} | "
                            f"{noise:.4f} |")
@@ -120,7 +125,7 @@ def main() -> None:
             "all cores; the render call only (no scene update), median over yarns and "
             f"seeds; Cycles: {CYCLES_SECONDS} s at noise {CYCLES_NOISE} "
             "(blender_compare on these two yarns, commit db0b077).\n\n" + "\n".join(levers)
-            + f"\n\n## Light sampling weights at {SWEEP_SPP} spp (multijitter)\n\n"
+            + f"\n\n## path's light sampling weights at {SWEEP_SPP} spp (multijitter)\n\n"
             "The noise of the same renders with other weights for the lights; the scene's "
             f"are {S.LIGHT_WEIGHTS}.\n\n" + "\n".join(weights) + "\n")
     publish(text, args.out)

@@ -1,9 +1,12 @@
 """THE scene of one yarn as Mitsuba XML, so that a user can render it elsewhere
-(``ipm render --format xml``): ``<out>.xml`` plus the yarn's curve file beside it."""
+(``ipm render --format xml``): ``<out>.xml`` plus the yarn's curve file beside it.  The XML
+names Mitsuba's own ``path`` integrator: ipm's ``ipm_path`` is a Python plugin that other
+Mitsuba installs do not have, and ``path`` renders the same image with more noise."""
 
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import quoteattr
@@ -63,5 +66,6 @@ def save_scene_xml(out: str | os.PathLike, params: YarnParams, seed: int, scale:
     out = Path(out).with_suffix(".xml")
     curves = out.with_name(out.stem + "_curves.txt")
     generate(params, seed).save_mitsuba(curves)
-    write_text(out, scene_xml(scene_dict(scale, spp, curves.name, params.color, options)))
+    portable = replace(options, integrator="path")
+    write_text(out, scene_xml(scene_dict(scale, spp, curves.name, params.color, portable)))
     return [out, curves]

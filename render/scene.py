@@ -30,10 +30,14 @@ y -> world z: a cyclic permutation, so a rotation).
   and 64 spp a noise of 2.1 against 3.0 8-bit levels with ``independent`` in the same time;
   at the dataset's scale 0.25, 6 spp (9.1 levels) are cleaner than 8 independent spp (9.7),
   in less time.
-* Lights are picked for next-event estimation by :data:`LIGHT_WEIGHTS`, not with Mitsuba's
-  equal probability: the same expected image with a third less noise variance, so a third
-  fewer samples for the same noise (800 x 240 px: 0.0205 -> 0.0166 at 16 spp, 0.0130 ->
-  0.0105 at 36 spp; ``python -m ipm.benchmarks.noise_levers``).
+* Next-event estimation (``ipm_path``, :mod:`ipm.render.integrator`) samples at every
+  vertex one soft box, chosen by how much of it is above the surface's horizon times its
+  share of the light (:data:`LIGHT_WEIGHTS`), and leaves the room light to the BSDF's
+  samples: Mitsuba's ``path`` image with less noise in less time (NOISE_LEVERS_RESULT).
+  With ``path`` (``SceneOptions(integrator="path")``) the lights are picked by
+  :data:`LIGHT_WEIGHTS`, not with Mitsuba's equal probability: a third less noise variance
+  (800 x 240 px: 0.0205 -> 0.0166 at 16 spp, 0.0130 -> 0.0105 at 36 spp; ``python -m
+  ipm.benchmarks.noise_levers``).
 * Cross-sections: Mitsuba's curves are round; each fiber gets the radius sqrt(t_x t_y) of
   the circle with its ellipse's area (:meth:`ipm.FiberSet.round_radii`), so the fiber
   volume, and with it how much a ply of ``m`` fibers fills, is kept.  Seen from random
@@ -48,12 +52,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any
 
 import numpy as np
 
 from ipm.errors import UserError
 from ipm.frame import FRAME_HEIGHT_PX, FRAME_WIDTH_PX, PIXEL_SIZE_MM
+from ipm.render.integrator import PLUGIN, register
 
 #: Generator frame (x, y, z) -> world frame: the yarn axis z becomes the image horizontal.
 GENERATOR_TO_WORLD = np.array([[0, 0, 1], [1, 0, 0], [0, 1, 0]], dtype=np.float64)
@@ -63,16 +69,20 @@ SAMPLERS = ("multijitter", "independent", "stratified", "ldsampler", "orthogonal
 #: The soft boxes: name, centre (mm), side (mm), radiance as a fraction of ``key_light``.
 SOFT_BOXES = (("key_left", (-200.0, 50.0, 200.0), 150.0, 1.0),
               ("key_right", (200.0, -30.0, 200.0), 150.0, 0.6))
-#: How often next-event estimation picks each light, relative to each other (Mitsuba picks
-#: them with equal probability unless told).  The soft boxes by their radiance share; the
-#: room light rarely, because Mitsuba samples a constant emitter's directions over the whole
-#: sphere (half of them below the fiber's surface) while the BSDF's own samples find it well
-#: and multiple importance sampling weighs them in.  The expected image is the same; the
-#: noise at 800 x 240 px, 25 spp on two yarns (benchmarks/noise_levers.py) was 0.0142 with
-#: the room at 0.4 (its share of the light), 0.0135 at 0.2, 0.0129 at 0.05 and 0.0128 at
-#: 0.02; the right soft box at 0.4, 0.6, 0.8 and 1 changed it by under 5 %.
+#: How often ``path``'s next-event estimation picks each light, relative to each other
+#: (Mitsuba picks them with equal probability unless told): the soft boxes by their radiance
+#: share; the room light rarely, because Mitsuba samples a constant emitter's directions over
+#: the whole sphere (half of them below the fiber's surface) while the BSDF's own samples
+#: find it well and multiple importance sampling weighs them in.  The expected image is the
+#: same; the noise at 800 x 240 px, 25 spp on two yarns (benchmarks/noise_levers.py) was
+#: 0.0142 with the room at 0.4 (its share of the light), 0.0135 at 0.2, 0.0129 at 0.05 and
+#: 0.0128 at 0.02; the right soft box at 0.4, 0.6, 0.8 and 1 changed it by under 5 %.
+#: ``ipm_path`` weighs the soft boxes' reach by these and never light-samples the room.
 LIGHT_WEIGHTS = {"key_left": 1.0, "key_right": 0.6, "room": 0.05}
 LIGHT_SAMPLING = ("weighted", "uniform")
+#: :mod:`ipm.render.integrator`'s lamp choice by reach, or Mitsuba's ``path`` (the scene's
+#: integrator before 2026-12, and the one scalar variants use).
+INTEGRATORS = (PLUGIN, "path")
 
 
 @dataclass(frozen=True)
@@ -82,7 +92,9 @@ class SceneOptions:
     roughness, sheen: of the fibers' principled BSDF.  backdrop: albedo of the grey card.
     key_light: radiance of the left soft box (the right one has 0.6 of it).  room_light:
     uniform fill radiance.  max_depth: path length (3 = one bounce of light between fibers).
-    sampler: Mitsuba's pixel sampler (see the module doc).
+    sampler: Mitsuba's pixel sampler (see the module doc).  light_sampling: the lamps'
+    ``sampling_weight`` (:data:`LIGHT_WEIGHTS` or all equal).  integrator: see
+    :data:`INTEGRATORS`.
     """
 
     roughness: float = 0.5
@@ -93,6 +105,7 @@ class SceneOptions:
     max_depth: int = 3
     sampler: str = "multijitter"
     light_sampling: str = "weighted"
+    integrator: str = PLUGIN
 
     def __post_init__(self) -> None:
         if self.sampler not in SAMPLERS:
@@ -100,6 +113,9 @@ class SceneOptions:
         if self.light_sampling not in LIGHT_SAMPLING:
             raise UserError(f"unknown light sampling {self.light_sampling!r}; one of "
                             f"{', '.join(LIGHT_SAMPLING)}")
+        if self.integrator not in INTEGRATORS:
+            raise UserError(f"unknown integrator {self.integrator!r}; one of "
+                            f"{', '.join(INTEGRATORS)}")
         if not 0.01 <= self.roughness <= 1:
             raise UserError(f"roughness must be in [0.01, 1], got {self.roughness}")
         if not 0 <= self.sheen <= 1:
@@ -160,6 +176,14 @@ def _soft_box(name: str, position: tuple[float, float, float], size_mm: float,
             "emitter": _emitter("area", name, radiance, opts)}
 
 
+def integrator_dict(mi: ModuleType, opts: SceneOptions) -> dict[str, Any]:
+    """``opts.integrator`` for the variant set in ``mi``; scalar variants run ``path``."""
+    if opts.integrator == PLUGIN and not mi.variant().startswith("scalar"):
+        register(mi)
+        return {"type": PLUGIN, "max_depth": opts.max_depth}
+    return {"type": "path", "max_depth": opts.max_depth, "hide_emitters": True}
+
+
 def scene_dict(scale: float, spp: int, curves: str, color: tuple[float, float, float],
                opts: SceneOptions = DEFAULT_OPTIONS,
                to_world: np.ndarray | None = None) -> dict[str, Any]:
@@ -181,7 +205,7 @@ def scene_dict(scale: float, spp: int, curves: str, color: tuple[float, float, f
     matrix = yarn_to_world() if to_world is None else to_world
     return {
         "type": "scene",
-        "integrator": {"type": "path", "max_depth": opts.max_depth, "hide_emitters": True},
+        "integrator": integrator_dict(mi, opts),
         "sensor": {"type": "orthographic", "to_world": camera,
                    "sampler": {"type": opts.sampler, "sample_count": spp},
                    "film": {"type": "hdrfilm", "width": width, "height": height,

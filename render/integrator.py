@@ -9,12 +9,13 @@ the other lamp's light comes with weight ``1 / p`` and the pixel is noisy where 
     reach_i = sampling_weight_i * max(cos theta_i + sin phi_i, 0),
 
 theta_i the angle between the shading normal and the direction to the lamp's centre, phi_i
-the angular radius of the lamp's bounding sphere: ``reach_i`` is zero exactly where no point
-of the lamp is above the horizon (where the fibers' reflect-only BSDF returns zero), so the
-estimate stays unbiased.  Infinite lamps (the room light) are not light-sampled at all: the
-BSDF's cosine-weighted samples find a constant sky well, and Mitsuba samples it over the
-whole sphere, half of it below the surface.  Lamps hit by BSDF samples are weighted against
-this choice by multiple importance sampling (power heuristic), as in ``path``.
+the angular radius of the lamp's bounding sphere: ``reach_i`` is zero only where all of that
+sphere is below the horizon, where the fibers' and the card's reflect-only BSDFs return zero
+for the lamp, so the estimate stays unbiased.  Infinite lamps (the room light) are not
+light-sampled at all: the BSDF's cosine-weighted samples find a constant sky well, and
+Mitsuba samples it over the whole sphere, half of it below the surface.  Lamps hit by BSDF
+samples are weighted against this choice by multiple importance sampling (power
+heuristic), as in ``path``.
 
 The expected image is ``path``'s (``tests/test_render.py`` compares them); only the noise
 and the time change.  At 800 x 240 px on two yarns (``python -m
@@ -41,7 +42,8 @@ def register(mi: ModuleType) -> None:
     """Register :data:`PLUGIN` for Mitsuba's current variant (plugins are per variant)."""
     if mi.variant() in _registered:
         return
-    mi.register_integrator(PLUGIN, lambda props: _integrator_class(mi)(props))
+    cls = _integrator_class(mi)
+    mi.register_integrator(PLUGIN, lambda props: cls(props))
     _registered.add(mi.variant())
 
 

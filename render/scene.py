@@ -25,11 +25,11 @@ y -> world z: a cyclic permutation, so a rotation).
 * Pixels integrate their footprint with a box filter, like a sensor pixel; a Gaussian
   reconstruction filter cost 2.5x the render time here (its splats are scattered adds).
   Sample positions are stratified (Mitsuba's ``multijitter`` sampler): a fiber thinner than
-  a pixel makes coverage the main noise, and stratified positions estimate it better than
+  a pixel makes coverage a large part of the noise, and stratified positions estimate it better than
   independent ones.  Measured (``python -m ipm.benchmarks.render_speed``): at 800 x 240 px
-  and 64 spp a noise of 2.1 against 3.0 8-bit levels with ``independent`` in the same time;
-  at the dataset's scale 0.25, 6 spp (9.1 levels) are cleaner than 8 independent spp (9.7),
-  in less time.
+  and 64 spp a noise of 1.7 against 2.6 8-bit levels with ``independent`` in about the same
+  time; at the dataset's scale 0.25, 6 spp (7.6 levels) are cleaner than 8 independent spp
+  (8.6), in less time.
 * Next-event estimation (``ipm_path``, :mod:`ipm.render.integrator`) samples at every
   vertex one soft box, chosen by how much of it is above the surface's horizon times its
   share of the light (:data:`LIGHT_WEIGHTS`), and leaves the room light to the BSDF's

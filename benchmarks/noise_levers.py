@@ -8,7 +8,7 @@ time ipm would need for the noise of Cycles in the paper's setup follows from no
 being constant (noise falls as 1 / sqrt(samples)), and the speed-up is Cycles' measured
 time over it.  Levers, none of which changes the expected image:
 
-* the integrator: Mitsuba's ``path`` (the scene's until 2026-12-02) or the scene's
+* the integrator: Mitsuba's ``path`` (the scene's before ``ipm_path``) or the scene's
   ``ipm_path`` (:mod:`ipm.render.integrator`, each lamp chosen by its reach at every vertex);
 * how ``path``'s next-event estimation picks the lights: with equal probability (Mitsuba's
   default, the scene's before 2026-12), by each lamp's share of the light, or by the scene's
@@ -50,7 +50,7 @@ PATH = SceneOptions(integrator="path")
 LEVERS = {"path, equal light choice (the scene before 2026-12)":
           (SceneOptions(integrator="path", light_sampling="uniform"), None),
           "path, light weights by power": (PATH, POWER_WEIGHTS),
-          "path, the scene's light weights (the scene until 2026-12-02)": (PATH, None),
+          "path, the scene's light weights (the scene before ipm_path)": (PATH, None),
           "path, orthogonal sampler": (SceneOptions(integrator="path", sampler="orthogonal"),
                                        None),
           "path, ldsampler": (SceneOptions(integrator="path", sampler="ldsampler"), None),

@@ -25,11 +25,11 @@ y -> world z: a cyclic permutation, so a rotation).
 * Pixels integrate their footprint with a box filter, like a sensor pixel; a Gaussian
   reconstruction filter cost 2.5x the render time here (its splats are scattered adds).
   Sample positions are stratified (Mitsuba's ``multijitter`` sampler): a fiber thinner than
-  a pixel makes coverage a large part of the noise, and stratified positions estimate it better than
-  independent ones.  Measured (``python -m ipm.benchmarks.render_speed``): at 800 x 240 px
-  and 64 spp a noise of 1.7 against 2.6 8-bit levels with ``independent`` in about the same
-  time; at the dataset's scale 0.25, 6 spp (7.6 levels) are cleaner than 8 independent spp
-  (8.6), in less time.
+  a pixel makes coverage a large part of the noise, and stratified positions estimate it
+  better than independent ones.  Measured (``python -m ipm.benchmarks.render_speed``): at
+  800 x 240 px and 64 spp a noise of 1.7 against 2.6 8-bit levels with ``independent`` in
+  about the same time; at the dataset's scale 0.25, 6 spp (7.6 levels) are cleaner than 8
+  independent spp (8.6), in less time.
 * Next-event estimation (``ipm_path``, :mod:`ipm.render.integrator`) samples at every
   vertex one soft box, chosen by how much of it is above the surface's horizon times its
   share of the light (:data:`LIGHT_WEIGHTS`), and leaves the room light to the BSDF's
@@ -82,7 +82,7 @@ SOFT_BOXES = (("key_left", (-200.0, 50.0, 200.0), 150.0, 1.0),
 LIGHT_WEIGHTS = {"key_left": 1.0, "key_right": 0.6, "room": 0.05}
 LIGHT_SAMPLING = ("weighted", "uniform")
 #: :mod:`ipm.render.integrator`'s lamp choice by reach, or Mitsuba's ``path`` (the scene's
-#: integrator before 2026-12, and the one scalar variants use).
+#: integrator before ``ipm_path``, and the one scalar variants use).
 INTEGRATORS = (PLUGIN, "path")
 
 

@@ -31,6 +31,29 @@ FITS = "fits.jsonl"
 
 
 @dataclass(frozen=True)
+class PhotoPrep:
+    """What is done to every photo before it is fitted: ``invert`` (backlit captures: a dark
+    yarn on a light background) and ``blur_mm``, a Gaussian blur of that sigma at the yarn
+    (in linear light), to measure the fit on photos less sharp than renders."""
+
+    invert: bool = False
+    blur_mm: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.blur_mm <= 1:
+            raise UserError(f"blur must be in [0, 1] mm, got {self.blur_mm}")
+
+    def load(self, photo: Photo) -> np.ndarray:
+        from ipm.photo import defocus, linear_to_srgb, read_image, srgb_to_linear
+
+        image = read_image(photo.image)
+        if self.blur_mm:
+            image = linear_to_srgb(defocus(srgb_to_linear(image),
+                                           self.blur_mm / photo.pixel_size_mm))
+        return 1 - image if self.invert else image
+
+
+@dataclass(frozen=True)
 class Photo:
     """One photo to fit; ``truth`` when it comes from a labelled dataset."""
 
@@ -67,19 +90,19 @@ def fit_row(photo: Photo, image: np.ndarray, neural: YarnParams, renderer, optio
     return {"image": str(photo.image), "neural": res.neural.to_dict(),
             "refined": res.refined.to_dict(), "loss_neural": res.loss_neural,
             "loss_refined": res.loss_refined, "improved": bool(res.improved),
-            "tilt_deg": res.tilt_deg, "warnings": res.warnings,
+            "tilt_deg": res.tilt_deg, "blur_px": res.blur_px, "warnings": res.warnings,
             "trace": res.search.trace if res.search else [], "seconds": res.seconds}
 
 
 def fit_all(path: Path, photos: Sequence[Photo], neural_of: Callable[[int, np.ndarray],
-            YarnParams], options, sigma: dict[str, float] | None, invert: bool = False,
+            YarnParams], options, sigma: dict[str, float] | None,
+            prep: PhotoPrep = PhotoPrep(),
             progress: Callable[[int, int], None] | None = None) -> list[dict]:
     """Fit every photo, resuming from the rows already in the JSON-lines file ``path``.
 
     ``neural_of(i, image)`` gives the nets' parameters of photo ``i``.  A row is appended
     (and flushed) as each fit ends; a line torn by a kill, and any row that does not belong
     to the photo at its place, is dropped and that photo fitted again."""
-    from ipm.photo import read_image
     from ipm.render.renderer import Renderer
 
     done: list[dict] = []
@@ -97,9 +120,7 @@ def fit_all(path: Path, photos: Sequence[Photo], neural_of: Callable[[int, np.nd
     renderer = None
     with open(path, "a", encoding="utf-8") as f:
         for i in range(len(done), len(photos)):
-            image = read_image(photos[i].image)
-            if invert:
-                image = 1 - image
+            image = prep.load(photos[i])
             renderer = renderer or Renderer()
             row = fit_row(photos[i], image, neural_of(i, image), renderer, options, sigma)
             f.write(json.dumps(row) + "\n")
@@ -172,11 +193,11 @@ def markdown(s: dict, rows: list[dict], command: str, figure: str | None) -> str
 
 
 def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Photo], picks: list[int],
-                  tags: dict[int, str], invert: bool = False, display_scale: float = 0.25
-                  ) -> None:
+                  tags: dict[int, str], prep: PhotoPrep = PhotoPrep(),
+                  display_scale: float = 0.25) -> None:
     """photo | neural | refined for the rows ``picks``, each labelled ``tags[i]`` and its
     losses, rendered with the fit's fiber seed in the shared scene."""
-    from ipm.photo import read_image, write_png
+    from ipm.photo import write_png
     from ipm.refine.fit import FitOptions, FitResult, compare_image, display_renders
     from ipm.render.renderer import Renderer
 
@@ -186,9 +207,8 @@ def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Photo], picks: 
         r = rows[i]
         res = FitResult(YarnParams.from_dict(r["neural"]), YarnParams.from_dict(r["refined"]),
                         r["loss_neural"], r["loss_refined"], r["improved"],
-                        tilt_deg=r.get("tilt_deg", 0.0))
-        image = read_image(photos[i].image)
-        panels += list(display_renders(renderer, 1 - image if invert else image,
+                        tilt_deg=r.get("tilt_deg", 0.0), blur_px=r.get("blur_px", 0.0))
+        panels += list(display_renders(renderer, prep.load(photos[i]),
                                        photos[i].pixel_size_mm, res, options))
         labels += [f"{tags[i]}: {Path(r['image']).name}", f"neural  loss {r['loss_neural']:.4f}",
                    f"refined  loss {r['loss_refined']:.4f}"]
@@ -196,7 +216,7 @@ def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Photo], picks: 
 
 
 def compare(photos: Sequence[Photo], out: Path, ensemble, options, prior: bool = True,
-            invert: bool = False, figure_count: int = 4, progress=None,
+            prep: PhotoPrep = PhotoPrep(), figure_count: int = 4, progress=None,
             command: str = "ipm compare") -> dict:
     """Fit every photo (:func:`photos_in`), resuming a stopped run in ``out``, and write the
     report; returns the summary."""
@@ -204,7 +224,7 @@ def compare(photos: Sequence[Photo], out: Path, ensemble, options, prior: bool =
     out.mkdir(parents=True, exist_ok=True)
     rows = fit_all(out / FITS, photos, lambda i, image: ensemble.predict(
         image, photos[i].pixel_size_mm), options,
-        ensemble.sigma(photos[0].pixel_size_mm) if prior and photos else None, invert,
+        ensemble.sigma(photos[0].pixel_size_mm) if prior and photos else None, prep,
         progress)
     s = summary(rows, truth)
     write_text(out / "results.csv", csv_text(rows, truth))
@@ -213,7 +233,7 @@ def compare(photos: Sequence[Photo], out: Path, ensemble, options, prior: bool =
         gain = [r["loss_neural"] - r["loss_refined"] for r in rows]
         picks = sorted(range(len(rows)), key=lambda i: -gain[i])[:figure_count]
         contact_sheet(out / "compare.png", rows, photos, sorted(picks),
-                      {i: f"photo {i}" for i in picks}, invert)
+                      {i: f"photo {i}" for i in picks}, prep)
         figure = "compare.png"
     write_text(out / "index.md", markdown(s, rows, command, figure))
     write_text(out / "summary.json", json.dumps(s, indent=2) + "\n")

@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from ipm.errors import UserError
-from ipm.refine.compare import FITS, REFINED, compare, photos_in
+from ipm.refine.compare import FITS, REFINED, PhotoPrep, compare, photos_in
 from ipm.refine.fit import FitOptions
 from ipm.refine.search import SearchOptions
 
@@ -79,3 +79,21 @@ def test_cli_refuses_other_settings_in_one_line(dataset, tmp_path):
     assert r.returncode == 2 and "other settings" in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
     assert json.loads((out / "settings.json").read_text()) == {"photos": "elsewhere"}
+
+
+def test_photo_prep_blurs_in_mm_and_inverts(dataset):
+    """--blur-mm blurs by sigma in mm at the yarn (so in pixels by each photo's pixel size),
+    keeping the mean light; --invert flips the values."""
+    import numpy as np
+
+    from ipm.benchmarks.render_speed import highpass
+    from ipm.photo import srgb_to_linear
+
+    photo = photos_in(dataset, 0.01)[0]
+    sharp, blurred = PhotoPrep().load(photo), PhotoPrep(blur_mm=2 * photo.pixel_size_mm).load(photo)
+    assert np.std(highpass(blurred)) < 0.5 * np.std(highpass(sharp))
+    light = [srgb_to_linear(x).mean() for x in (sharp, blurred)]
+    assert light[1] == pytest.approx(light[0], rel=0.01)  # blurred in linear light
+    assert np.allclose(PhotoPrep(invert=True).load(photo), 1 - sharp)
+    with pytest.raises(UserError, match="blur must be in"):
+        PhotoPrep(blur_mm=2.0)

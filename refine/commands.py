@@ -20,8 +20,6 @@ _DEFAULT = SearchOptions()
 
 _PARAMS_HELP = ("comma-separated continuous parameters to search (e.g. alpha_ply,R_ply); "
                 "the others keep the nets' values")
-_MATCH_BLUR_HELP = ("estimate the photo's defocus at the nets' guess and blur the search's "
-                    "renders (and the renders written) to match")
 
 
 def _search_params(text: str) -> tuple[str, ...]:
@@ -60,7 +58,6 @@ def fit(
                                         "(MAP); --no-prior: the image loss alone")] = True,
     invert: Annotated[bool, typer.Option("--invert", help="invert the photo first (backlit: "
                                          "dark yarn on a light background)")] = False,
-    match_blur: Annotated[bool, typer.Option("--match-blur", help=_MATCH_BLUR_HELP)] = False,
     variant: Annotated[str | None, typer.Option(help="Mitsuba variant")] = None,
 ) -> None:
     """Infer a yarn's parameters from a photo: the neural ensemble, and with --refine a
@@ -74,7 +71,7 @@ def fit(
 
     options = FitOptions(search=SearchOptions(params=_search_params(params),
                                               algorithm=algorithm, budget=budget,
-                                              time_s=time_limit), match_blur=match_blur)
+                                              time_s=time_limit))
     image = read_image(photo)
     if invert:
         image = 1 - image
@@ -131,7 +128,6 @@ def compare(
                                         "nets' guess (see ipm fit)")] = True,
     invert: Annotated[bool, typer.Option("--invert", help="invert the photos first (backlit: "
                                          "dark yarn on a light background)")] = False,
-    match_blur: Annotated[bool, typer.Option("--match-blur", help=_MATCH_BLUR_HELP)] = False,
     blur_mm: Annotated[float, typer.Option("--blur-mm", min=0, max=1, help="blur every photo "
                                            "by a Gaussian of this sigma (mm at the yarn) "
                                            "first: the fits on photos less sharp than "
@@ -148,8 +144,7 @@ def compare(
     from ipm.refine.fit import FitOptions
 
     options = FitOptions(search=SearchOptions(params=_search_params(params),
-                                              algorithm=algorithm, budget=budget),
-                         match_blur=match_blur)
+                                              algorithm=algorithm, budget=budget))
     listed = cmp.photos_in(photos, pixel_size, count)
     ensemble = Ensemble.load(models)
     _prepare_folder(out)
@@ -157,9 +152,7 @@ def compare(
                 "models": str(models) if models else "shipped", "budget": budget,
                 "algorithm": algorithm, "params": list(options.search.params), "prior": prior,
                 "invert": invert}
-    # only when set: a folder made before these options resumes
-    settings |= {"match_blur": True} if match_blur else {}
-    settings |= {"blur_mm": blur_mm} if blur_mm else {}
+    settings |= {"blur_mm": blur_mm} if blur_mm else {}  # only when set: older folders resume
     saved = out / "settings.json"
     check_same_settings(saved, settings, "a comparison")
     write_text(saved, json.dumps(settings, indent=2) + "\n")

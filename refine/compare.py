@@ -90,7 +90,7 @@ def fit_row(photo: Photo, image: np.ndarray, neural: YarnParams, renderer, optio
     return {"image": str(photo.image), "neural": res.neural.to_dict(),
             "refined": res.refined.to_dict(), "loss_neural": res.loss_neural,
             "loss_refined": res.loss_refined, "improved": bool(res.improved),
-            "tilt_deg": res.tilt_deg, "blur_px": res.blur_px, "warnings": res.warnings,
+            "tilt_deg": res.tilt_deg, "warnings": res.warnings,
             "trace": res.search.trace if res.search else [], "seconds": res.seconds}
 
 
@@ -207,7 +207,7 @@ def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Photo], picks: 
         r = rows[i]
         res = FitResult(YarnParams.from_dict(r["neural"]), YarnParams.from_dict(r["refined"]),
                         r["loss_neural"], r["loss_refined"], r["improved"],
-                        tilt_deg=r.get("tilt_deg", 0.0), blur_px=r.get("blur_px", 0.0))
+                        tilt_deg=r.get("tilt_deg", 0.0))
         panels += list(display_renders(renderer, prep.load(photos[i]),
                                        photos[i].pixel_size_mm, res, options))
         labels += [f"{tags[i]}: {Path(r['image']).name}", f"neural  loss {r['loss_neural']:.4f}",

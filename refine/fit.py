@@ -17,8 +17,8 @@ import numpy as np
 
 from ipm.errors import UserError
 from ipm.params import YarnParams
-from ipm.photo import defocus, linear_to_srgb, srgb_to_linear, to_scene_pitch
-from ipm.refine.objective import RenderObjective, centre_crop, estimate_blur, to_tensor
+from ipm.photo import linear_to_srgb, srgb_to_linear, to_scene_pitch
+from ipm.refine.objective import RenderObjective, centre_crop, to_tensor
 from ipm.refine.search import SearchOptions, SearchResult, search
 from ipm.refine.stats import centre_rows, yarn_centre, yarn_tilt
 from ipm.render.photometric import Photometric
@@ -33,16 +33,13 @@ MIN_CORE_CONTRAST = 0.03
 @dataclass(frozen=True)
 class FitOptions:
     """scale, spp: resolution and samples of the renders inside the search.  seeds_per_eval:
-    fiber seeds averaged per evaluation.  search: the NLopt options.  match_blur: estimate
-    the photo's defocus at the nets' guess (:func:`ipm.refine.objective.estimate_blur`) and
-    blur every render of the search and the display by it.  display_scale, display_spp: the
-    renders written for the user."""
+    fiber seeds averaged per evaluation.  search: the NLopt options.  display_scale,
+    display_spp: the renders written for the user."""
 
     scale: float = 0.2
     spp: int = 4
     seeds_per_eval: int = 2
     search: SearchOptions = field(default_factory=SearchOptions)
-    match_blur: bool = False
     display_scale: float = 0.5
     display_spp: int = 16
 
@@ -66,7 +63,6 @@ class FitResult:
     seconds: float = 0.0
     tilt_deg: float = 0.0
     sigma: dict[str, float] | None = None
-    blur_px: float = 0.0
 
     def to_dict(self, options: FitOptions, pixel_size_mm: float) -> dict:
         return {
@@ -76,8 +72,7 @@ class FitResult:
             "evaluations": self.search.evaluations if self.search else 0,
             "seconds": round(self.seconds, 2),
             "settings": {**asdict(options), "pixel_size_mm": pixel_size_mm,
-                         "tilt_deg": round(self.tilt_deg, 3), "prior_sigma": self.sigma,
-                         "blur_px": self.blur_px},
+                         "tilt_deg": round(self.tilt_deg, 3), "prior_sigma": self.sigma},
         }
 
 
@@ -143,15 +138,10 @@ def fit(photo: np.ndarray, pixel_size_mm: float, neural: YarnParams, renderer,
         refine = False
     else:
         neural = match_colour(objective, neural, small)
-        if options.match_blur:
-            objective.blur_px = estimate_blur(objective, neural,
-                                              (options.search.fiber_seed,
-                                               *options.search.rescore_seeds))
     if not refine:
         loss = _mean_loss(objective, neural, options.search)
         return FitResult(neural, neural, loss, loss, False, warnings,
-                         seconds=time.perf_counter() - t0, tilt_deg=tilt, sigma=sigma,
-                         blur_px=objective.blur_px)
+                         seconds=time.perf_counter() - t0, tilt_deg=tilt, sigma=sigma)
     result = search(objective, neural, options.search, on_eval, sigma)
     refined = match_colour(objective, result.best, small) if result.improved else neural
     if not result.improved:
@@ -160,7 +150,7 @@ def fit(photo: np.ndarray, pixel_size_mm: float, neural: YarnParams, renderer,
                                                        if sigma else "")
                         + "; the neural result is kept")
     return FitResult(neural, refined, result.start_loss, result.best_loss, result.improved,
-                     warnings, result, time.perf_counter() - t0, tilt, sigma, objective.blur_px)
+                     warnings, result, time.perf_counter() - t0, tilt, sigma)
 
 
 def photo_tilt(image_srgb: np.ndarray) -> float:
@@ -180,11 +170,9 @@ def display_renders(renderer, photo: np.ndarray, pixel_size_mm: float, result: F
     common extent."""
     shown = to_scene_pitch(photo, pixel_size_mm, options.display_scale)
     capture = Photometric(rotation_deg=result.tilt_deg)
-    blur = result.blur_px * options.display_scale / options.scale
-    renders = [linear_to_srgb(defocus(renderer.render(p, options.search.fiber_seed,
-                                                      options.display_scale,
-                                                      options.display_spp,
-                                                      photometric=capture), blur))
+    renders = [linear_to_srgb(renderer.render(p, options.search.fiber_seed,
+                                              options.display_scale, options.display_spp,
+                                              photometric=capture))
                for p in (result.neural, result.refined)]
     h = min(shown.shape[0], renders[0].shape[0])
     w = min(shown.shape[1], renders[0].shape[1])

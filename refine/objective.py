@@ -12,8 +12,8 @@ import numpy as np
 import torch
 
 from ipm.params import YarnParams
-from ipm.photo import defocus, linear_to_srgb
-from ipm.refine.stats import GROUPS, group_distances, stat_distance, yarn_statistics
+from ipm.photo import linear_to_srgb
+from ipm.refine.stats import group_distances, stat_distance, yarn_statistics
 from ipm.render.photometric import Photometric
 
 #: Group weights from ``python -m ipm.benchmarks.identifiability`` on 10 held-out photos
@@ -25,11 +25,6 @@ from ipm.render.photometric import Photometric
 #: noise), so they are off.
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
                    "period": 1.0, "stripes": 2.0, "histogram": 0.0}
-#: The blurs (Gaussian sigma, render pixels) :func:`estimate_blur` tries, and the weights it
-#: scores them by: every statistics group, since blur changes all of them (the spectrum and
-#: gradients most) while the search's groups are chosen to ignore what they do not measure.
-BLUR_GRID_PX = (0.0, 0.4, 0.8, 1.2, 1.6, 2.4, 3.2)
-BLUR_WEIGHTS = dict.fromkeys(GROUPS, 1.0)
 
 
 def centre_crop(img: np.ndarray, h: int, w: int) -> np.ndarray:
@@ -49,9 +44,7 @@ class RenderObjective:
     renderer: an :class:`ipm.render.renderer.Renderer`.  photo: (H, W, 3) sRGB in [0, 1]
     at the pixel pitch of ``scale``.  ``seeds_per_eval``: the render's statistics are the
     mean over that many fiber seeds (``seed``, ``seed + 1000``, ...), which shrinks the
-    seed noise of the loss at that many times the cost.  ``blur_px``: a Gaussian blur
-    (render pixels, linear light) of every render, the photo's defocus
-    (:func:`estimate_blur`).  ``evaluations`` counts renders.
+    seed noise of the loss at that many times the cost.  ``evaluations`` counts renders.
     """
 
     def __init__(self, renderer, photo: np.ndarray, scale: float, spp: int,
@@ -64,24 +57,16 @@ class RenderObjective:
         self.renderer, self.scale, self.spp, self.render_seed = renderer, scale, spp, render_seed
         self.weights = DEFAULT_WEIGHTS if weights is None else weights
         self.seeds_per_eval = seeds_per_eval
-        self.blur_px = 0.0
         self.capture = Photometric(rotation_deg=tilt_deg)
         self.photo_stats = yarn_statistics(to_tensor(centre_crop(photo, *self.size)))
         self.evaluations = 0
 
-    def render_linear(self, params: YarnParams, seed: int) -> np.ndarray:
-        """The linear render (H, W, 3), sharp and uncut."""
-        self.evaluations += 1
-        return self.renderer.render(params, seed, self.scale, self.spp, self.render_seed,
-                                    self.capture)
-
     def render(self, params: YarnParams, seed: int) -> np.ndarray:
-        """The sRGB render (H, W, 3) the objective compares, blurred by ``blur_px`` and cut
-        to the photo's extent."""
-        return self.to_photo(self.render_linear(params, seed), self.blur_px)
-
-    def to_photo(self, linear: np.ndarray, blur_px: float) -> np.ndarray:
-        return centre_crop(linear_to_srgb(defocus(linear, blur_px)), *self.size)
+        """The sRGB render (H, W, 3) the objective compares, cut to the photo's extent."""
+        img = self.renderer.render(params, seed, self.scale, self.spp, self.render_seed,
+                                   self.capture)
+        self.evaluations += 1
+        return centre_crop(linear_to_srgb(img), *self.size)
 
     def loss_of_image(self, img: np.ndarray) -> float:
         return float(stat_distance(yarn_statistics(to_tensor(img)), self.photo_stats,
@@ -101,16 +86,3 @@ class RenderObjective:
     def __call__(self, params: YarnParams, seed: int) -> float:
         return float(stat_distance(self._mean_stats(params, seed), self.photo_stats,
                                    self.weights)[0])
-
-
-def estimate_blur(objective: RenderObjective, params: YarnParams, seeds: tuple[int, ...]
-                  ) -> float:
-    """The photo's blur relative to a render, in render pixels: the :data:`BLUR_GRID_PX`
-    entry whose blur makes renders of ``params`` (one per fiber seed) closest to the photo
-    by every statistics group (tests/test_refine_fit.py: a render blurred by 1.6 px and a
-    sharp one)."""
-    linear = [objective.render_linear(params, s) for s in seeds]
-    losses = [np.mean([float(stat_distance(yarn_statistics(to_tensor(objective.to_photo(x, b))),
-                                           objective.photo_stats, BLUR_WEIGHTS)[0])
-                       for x in linear]) for b in BLUR_GRID_PX]
-    return float(BLUR_GRID_PX[int(np.argmin(losses))])

@@ -102,26 +102,3 @@ def test_photo_tilt_is_the_rendered_rotation(degrees):
 
     image = Renderer().render(preset("golden"), 1, 0.2, 4, 0, Photometric(rotation_deg=degrees))
     assert photo_tilt(linear_to_srgb(image)) == pytest.approx(degrees, abs=0.3)
-
-
-@pytest.mark.parametrize("blur_px", [0.0, 1.6])
-def test_estimate_blur_finds_the_photos_defocus(blur_px):
-    """A render of the golden preset, blurred by ``blur_px`` render pixels, as the photo:
-    renders of the same yarn with other fiber seeds are closest to it at about that blur."""
-    from ipm.photo import defocus
-    from ipm.refine.objective import RenderObjective, estimate_blur
-    from ipm.render.renderer import Renderer
-
-    r = Renderer()
-    photo = linear_to_srgb(defocus(r.render(preset("golden"), 7, 0.2, 8), blur_px))
-    objective = RenderObjective(r, photo, 0.2, 4)
-    assert estimate_blur(objective, preset("golden"), (0, 1)) == pytest.approx(blur_px, abs=0.4)
-
-
-def test_fit_match_blur_records_the_blur(models, photo, tmp_path):
-    out = tmp_path / "fit"
-    r = ipm("fit", photo, "--match-blur", "--models", models, "--pixel-size", 0.04,
-            "--out", out)
-    assert r.returncode == 0, r.stderr
-    settings = json.loads((out / "params.json").read_text())["settings"]
-    assert settings["match_blur"] is True and settings["blur_px"] <= 0.4  # a sharp render

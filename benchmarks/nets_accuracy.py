@@ -3,8 +3,8 @@ never used for training: per-parameter MAE in raw units and in % of the paramete
 interval, beside the predict-the-mean baseline (the mean training label, stored with each
 net) and the paper's validation table; ply-count and thickness-class accuracy beside the
 majority class.  ``--blur-mm`` blurs every photo first (a Gaussian of that sigma in mm, in
-linear light: :func:`ipm.photo.defocus`), to see how the nets hold up on a photo with the
-defocus a render lacks.
+linear light: :class:`ipm.refine.compare.PhotoPrep`), to see how the nets hold up on a
+photo with the defocus a render lacks.
 
     python -m ipm.benchmarks.nets_accuracy --data data/test [--models DIR] [--blur-mm S]
         [--out benchmarks/results/nets_accuracy.md]
@@ -20,7 +20,7 @@ from ipm.benchmarks.machine import markdown_header, publish
 from ipm.nets.data import read_manifest
 from ipm.nets.ensemble import Ensemble
 from ipm.params import PAPER_INTERVALS, PARAM_ORDER, THICKNESS_CLASSES
-from ipm.photo import defocus, linear_to_srgb, read_image, srgb_to_linear
+from ipm.refine.compare import PhotoPrep
 
 #: The paper's validation errors of the parameter-specific networks (Table "Validation loss
 #: of different networks").
@@ -40,13 +40,8 @@ def main() -> None:
     args = ap.parse_args()
     ens = Ensemble.load(args.models)
     records = read_manifest(args.data)
-
-    def photo(r) -> np.ndarray:
-        img = read_image(r.image)
-        sigma = args.blur_mm / r.pixel_size_mm
-        return linear_to_srgb(defocus(srgb_to_linear(img), sigma)) if sigma > 0 else img
-
-    pred = [ens.predict(photo(r), r.pixel_size_mm, args.crops) for r in records]
+    prep = PhotoPrep(blur_mm=args.blur_mm)
+    pred = [ens.predict(prep.load(r), r.pixel_size_mm, args.crops) for r in records]
     true = [r.params for r in records]
     pairs = list(zip(pred, true, strict=True))
     base = ens.mean_prediction(records[0].pixel_size_mm)  # a dataset has one scale

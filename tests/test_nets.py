@@ -293,8 +293,7 @@ def test_shipped_nets_hold_on_a_blurred_photo():
         photo = linear_to_srgb(defocus(renderer.render(p, i, 0.25, 8), 1.0))
         q = ens.predict(photo, 0.04, 3)
         for k, e in errors.items():
-            e.append(abs(getattr(q, k) - getattr(p, k))
-                     / PAPER_INTERVALS[k].width)
+            e.append(abs(getattr(q, k) - getattr(p, k)) / PAPER_INTERVALS[k].width)
     assert np.mean(errors["R_ply"]) < 0.07 and np.mean(errors["m"]) < 0.2
 
 

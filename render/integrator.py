@@ -105,6 +105,7 @@ def _integrator_class(mi: ModuleType) -> type:
             valid = mi.Bool(False)
             si_prev = dr.zeros(mi.SurfaceInteraction3f)
             bsdf_pdf_prev = mi.Float(1.0)
+            choice_prev = [mi.Float(0.0) for _ in lamps]  # the lamp choice at si_prev
             while active:
                 si = scene.ray_intersect(ray, active)
                 valid |= (depth == 0) & si.is_valid()
@@ -112,8 +113,7 @@ def _integrator_class(mi: ModuleType) -> type:
                 found = active & (depth > 0)
                 ds = mi.DirectionSample3f(scene, si=si, ref=si_prev)
                 lamp_pdf = mi.Float(0.0)
-                for (emitter, _, _, _), p in zip(lamps, self.choice(lamps, si_prev),
-                                                 strict=True):
+                for (emitter, _, _, _), p in zip(lamps, choice_prev, strict=True):
                     hit = found & (ds.emitter == mi.EmitterPtr(emitter))
                     lamp_pdf[hit] = p * emitter.pdf_direction(si_prev, ds, hit)
                 L[found] += beta * mis_weight(bsdf_pdf_prev, lamp_pdf) * ds.emitter.eval(si, found)
@@ -127,8 +127,8 @@ def _integrator_class(mi: ModuleType) -> type:
                 em_ds = dr.zeros(mi.DirectionSample3f)
                 em_weight = mi.Spectrum(0.0)
                 lo = mi.Float(0.0)
-                for i, ((emitter, _, _, _), p) in enumerate(zip(lamps, self.choice(lamps, si),
-                                                                strict=True)):
+                choice = self.choice(lamps, si)
+                for i, ((emitter, _, _, _), p) in enumerate(zip(lamps, choice, strict=True)):
                     # the last lamp takes the rest of [0, 1), which rounding may leave
                     last = i == len(lamps) - 1
                     pick = active & (p > 0) & (u.x >= lo) & ((u.x < lo + p) | last)
@@ -151,6 +151,7 @@ def _integrator_class(mi: ModuleType) -> type:
                 ray = si.spawn_ray(si.to_world(bs.wo))
                 si_prev = si
                 bsdf_pdf_prev = bs.pdf
+                choice_prev = choice
                 active &= dr.max(beta) > 0
                 depth += 1
             return L, valid, []

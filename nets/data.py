@@ -33,10 +33,15 @@ CACHE_BYTES = 6 * 2**30
 _LINEAR = srgb_to_linear(np.arange(256, dtype=np.float32) / 255)
 
 
+def exposed_input(linear: np.ndarray, ev: float) -> np.ndarray:
+    """Net input in [-1, 1] of linear light scaled by 2**ev (a brighter or darker exposure
+    of the same scene), sRGB-encoded like a photo."""
+    return linear_to_srgb(linear * 2.0 ** ev) * 2 - 1
+
+
 def exposure_lut(ev: float) -> np.ndarray:
-    """(256,) float32 in [-1, 1]: 8-bit sRGB -> net input after scaling linear light by
-    2**ev (a brighter or darker exposure of the same scene)."""
-    return linear_to_srgb(_LINEAR * 2.0 ** ev) * 2 - 1
+    """(256,) float32 in [-1, 1]: 8-bit sRGB -> :func:`exposed_input`."""
+    return exposed_input(_LINEAR, ev)
 
 
 def to_input(img: np.ndarray) -> torch.Tensor:
@@ -163,7 +168,7 @@ class Crops(Dataset):
             top, left = (h - ch) // 2, (w - cw) // 2
         patch = img[top:top + ch, left:left + cw]
         if sigma > 0:
-            x = linear_to_srgb(defocus(_LINEAR[patch], sigma) * 2.0 ** ev) * 2 - 1
+            x = exposed_input(defocus(_LINEAR[patch], sigma), ev)
         else:
             x = exposure_lut(ev)[patch]
         x = torch.from_numpy(x.transpose(2, 0, 1).copy())

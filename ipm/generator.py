@@ -7,36 +7,47 @@ fourth (cabled yarn) is one more :class:`Level`.  Every stochastic step draws fr
 ``numpy.random.Generator`` passed in, in a fixed order: same parameters + same seed =
 bit-identical fibers.
 
-Conventions and deviations (the paper leaves these open):
+Conventions and deviations (the paper leaves these open; where the paper authors' public
+Blender script settles a point, we follow it so that a parameter means what it means there):
 
 * Placement (Eq. 2-5): ``p_i = r_i (sin theta_i, cos theta_i) + j_xy (R, R')`` with
   independent ``R, R'`` per component (the paper's ``R (1, 1)^T`` would only jitter along
-  the diagonal).  The circle pattern is used for ``N <= 7`` instances, the sunflower disc
-  beyond.  Only the fiber level is jittered (``j_xy`` is a fiber parameter, and the paper uses
-  "more structure on the ply level").
+  the diagonal).  The circle pattern (``i = 0 .. N-1``) is used for ``N <= 7`` instances,
+  the sunflower disc beyond, with ``i = 1 .. N`` as in the authors' script (``r_i > 0``, the
+  outermost instance on the rim).  Only the fiber level is jittered (``j_xy`` is a fiber
+  parameter, and the paper uses "more structure on the ply level").
 * Helix (Eq. 6-9): ``theta(z) = 2 pi z / alpha_h + phi_0`` with ``phi_0 = arctan2(p_x, p_y)``
-  so that vertex 0 coincides with ``p`` under the ``(sin, cos)`` parametrisation (the paper's
-  ``arctan2(p_y, p_x)`` would not).  Migration ``s(z) = 1 + j max(0, R_1) cos(2 R_2 +
-  2 pi R_3 z / alpha_h)``: Table 1 makes ``j`` the migration amplitude, which Eq. 8 omits;
-  only fibers migrate.  The z jitter ``j_z R_i`` moves each fiber vertex along the axis.
-* Local-frame mapping: a template point ``(x, y, z)`` goes to ``c(z) + x e_1(z) + y e_2(z)``
-  where ``c`` is the helix centre line, ``e_1`` the radial direction made orthogonal to the
-  tangent ``T = c'(z) / |c'(z)|`` and ``e_2 = e_1 x T``: the cross-section stays orthogonal to
-  its own centre line and turns with the helix (Eq. 6), so the squeezed (smaller) radius of
-  the ellipse always faces the centre.  ``mapping="global"`` is Zhao et al.'s shift
-  orthogonal to the global axis (``e_1`` radial, ``e_2`` tangential in the xy plane), kept
-  for comparison (paper Fig. 5).
-* Flyaways (Alg. 2): the segment length is arc length along the source fiber; a segment that
-  cannot be found in 64 rejection rounds is clipped to its fiber.  Loops use
-  ``o_i = d sin(i pi / (J - 1)) (v_x, v_y, 0)`` so both end vertices stay put, with
-  ``d = |d_mean + d_std R|``.  Eq. 10 writes ``v`` without a vertex index; we read it as one
-  radial vector per loop, the segment's middle vertex, so a loop is an arch pulled out of
-  the yarn.  (With each vertex's own ``v_i`` the copied helix balloons into a spiral around
-  the yarn that, seen from the side, is a sine wave, unlike the loops of real yarns.)
-  Hairs are squeezed along the axis about their root by
-  ``1 - s / 2`` (the paper gives no formula; ``s = 0`` must leave the hair unsqueezed, Fig. 6
-  f) and then rotated about the root so that the root-to-tip chord makes the angle ``beta``
-  with the yarn axis, leaning outwards.
+  so that vertex 0 coincides with ``p`` under the ``(sin, cos)`` parametrisation.  Migration
+  as in the authors' script: the helix radius is scaled by ``1 + A cos(phi_m + v z)`` with
+  ``A = max(0, j R)``, ``phi_m ~ U(0, 2 pi)`` and ``v ~ U(0, 2)`` rad/mm drawn once per
+  fiber (Eq. 8 omits ``j``; Table 1 makes it the migration amplitude); only fibers migrate.
+  The z jitter moves each fiber vertex along the axis by ``U(-1/2, 1/2) |alpha| j_z``, so
+  ``j_z`` is a fraction of the fiber pitch, as in the script.
+* Handedness: a template point ``(x, y, z)`` goes to ``c(z) + x e_1(z) + y e_2(z)`` where
+  ``c`` is the helix centre line, ``T = c'/|c'|``, ``e_1`` the radial direction made
+  orthogonal to ``T`` and ``e_2 = T x e_1``: ``(e_1, e_2, T)`` is right-handed like the
+  template's ``(x, y, z)``, so a level's twist keeps its sense when the template is carried
+  along the next level's helix.  A fiber of pitch ``alpha`` < 0 therefore turns about its ply
+  against a ply of pitch ``alpha_ply`` > 0 (the paper: opposite signs, opposite directions,
+  as in plied knitting yarns, S on Z).  The cross-section stays orthogonal to its own centre
+  line and turns with the helix (Eq. 6), so the squeezed (smaller) radius of the ellipse
+  always faces the centre.  ``mapping="global"`` is Zhao et al.'s shift orthogonal to the
+  global axis (``e_1`` radial, ``e_2 = e_z x e_1`` in the xy plane), kept for comparison
+  (paper Fig. 5).
+* Flyaways (Alg. 2), as in the authors' script.  Their number is ``g`` per 10 mm of yarn (the
+  script makes ``int(4 g)`` along a 40 mm yarn), so ``g`` means the same flyaway density
+  whatever the length generated.  A segment is found by arc length along a source fiber
+  (rejection sampling; one that cannot be found in 64 rounds is clipped to its fiber), its
+  first vertex the root.
+  Loops: length ``l_loop + 0.01 R``; the segment's x is halved about its root, then it is
+  pushed along the unit radial direction ``u`` of its last vertex by
+  ``o_i = 0.1 d sin(i pi / (J - 1)) u`` (``d`` in units of 0.1 mm, both ends stay put on the
+  radial path); ``d = d_mean + |d_std R|``.  4 % are long loops: ``2 l_loop`` long with
+  ``d = |2 d_mean + d_std R|`` (the script's ``N(2 d_mean, d_std)``; the absolute value keeps
+  the rare negative draw from pushing a loop through the yarn).
+  Hairs: length ``l_hair + 0.05 R`` (4 % are ``3 l_hair`` long); the segment is squeezed
+  along the axis about its root by ``1 / (1 + 1.5 s)``, mirrored in x about its root and
+  rotated by ``beta`` about the radial axis through its root.
 """
 
 from __future__ import annotations
@@ -58,6 +69,13 @@ VERTICES_PER_TURN = 16
 SPACING_BOUNDS_MM = (0.02, 0.1)
 CIRCLE_PATTERN_MAX = 7
 FLYAWAY_TRIES = 64
+#: Flyaways per mm of yarn and unit of ``g`` (the authors' ``int(4 g)`` on 40 mm).
+FLYAWAYS_PER_MM_AND_G = 0.1
+#: Unit of the loop amplitude ``d`` in mm, and the share and scale of long loops and hairs.
+LOOP_D_UNIT_MM = 0.1
+LONG_SHARE = 0.04
+LONG_LOOP_FACTOR = 2.0
+LONG_HAIR_FACTOR = 3.0
 
 
 @dataclass(frozen=True)
@@ -104,7 +122,7 @@ def instance_positions(level: Level, rng: np.random.Generator) -> np.ndarray:
     if n <= CIRCLE_PATTERN_MAX:
         theta, r = 2 * np.pi * i / n, np.full(n, level.radius)
     else:
-        theta, r = 2 * np.pi * 0.137 * i, level.radius * (i / n) ** 0.3
+        theta, r = 2 * np.pi * 0.137 * (i + 1), level.radius * ((i + 1) / n) ** 0.3
     p = r[:, None] * np.column_stack([np.sin(theta), np.cos(theta)])
     if level.jitter > 0:
         p += level.jitter * rng.standard_normal((n, 2))
@@ -122,10 +140,10 @@ def twist(template: np.ndarray, level: Level, rng: np.random.Generator,
     n = len(pos)
     r_h = np.hypot(pos[:, 0], pos[:, 1])[:, None]
     phi0 = np.arctan2(pos[:, 0], pos[:, 1])[:, None]
-    if level.migration > 0:
-        amp, offset, speed = level.migration * np.maximum(0, rng.standard_normal(n)), \
-            2 * rng.standard_normal(n), rng.standard_normal(n)
-        amp, offset, speed = amp[:, None], offset[:, None], speed[:, None]
+    if level.migration > 0:  # per instance: amplitude A, phase phi_m, speed v (rad/mm)
+        amp = np.maximum(0, level.migration * rng.standard_normal(n))[:, None]
+        phase = rng.uniform(0, 2 * np.pi, n)[:, None]
+        speed = rng.uniform(0, 2, n)[:, None]
 
     x, y, z = level.squeeze * template[:, 0], template[:, 1], template[:, 2]
     k = 2 * np.pi / level.pitch  # d theta / dz
@@ -133,27 +151,28 @@ def twist(template: np.ndarray, level: Level, rng: np.random.Generator,
     sin, cos = np.sin(theta), np.cos(theta)
     rad, drad = r_h, 0.0  # (N, 1): without migration the frame is constant per instance
     if level.migration > 0:
-        arg = offset + speed * k * z[None, :]
+        arg = phase + speed * z[None, :]
         rad = r_h * (1 + amp * np.cos(arg))
-        drad = -r_h * amp * np.sin(arg) * speed * k
+        drad = -r_h * amp * np.sin(arg) * speed
     height = np.broadcast_to(z, theta.shape)
     if level.z_jitter > 0:
-        height = height + level.z_jitter * rng.standard_normal(theta.shape)
+        height = height + level.z_jitter * abs(level.pitch) * rng.uniform(-0.5, 0.5, theta.shape)
     # Work in the helix's cylindrical basis (u_r, u_t, e_z), u_r = (sin, cos, 0),
     # u_t = (cos, -sin, 0): the centre line is rad u_r + height e_z, its derivative
     # c'(z) = drad u_r + rad k u_t + e_z.  o_r, o_t, o_z: the template offset x e_1 + y e_2.
+    # The basis is left-handed (u_r x u_t = -e_z): the right-handed e_2 has o_t = -y.
     if mapping == "global" or not (np.any(x) or np.any(y)):
-        o_r, o_t, o_z = x, y, 0.0
+        o_r, o_t, o_z = x, -y, 0.0
     else:
         a, b = drad, rad * k
         inv_n = 1 / np.sqrt(a * a + b * b + 1)
         t_r, t_t, t_z = a * inv_n, b * inv_n, inv_n  # tangent T
         norm1 = 1 / np.sqrt(1 - t_r * t_r)  # e_1 = (u_r - t_r T) / |.|
         e1_r, e1_t, e1_z = (1 - t_r * t_r) * norm1, -t_r * t_t * norm1, -t_r * t_z * norm1
-        # e_2 = e_1 x T; the cylindrical basis is left-handed (u_r x u_t = -e_z)
-        e2_r = -(e1_t * t_z - e1_z * t_t)
-        e2_t = -(e1_z * t_r - e1_r * t_z)
-        e2_z = -(e1_r * t_t - e1_t * t_r)
+        # e_2 = T x e_1, which in the left-handed basis has the components of e_1 x T
+        e2_r = e1_t * t_z - e1_z * t_t
+        e2_t = e1_z * t_r - e1_r * t_z
+        e2_z = e1_r * t_t - e1_t * t_r
         o_r, o_t, o_z = x * e1_r + y * e2_r, x * e1_t + y * e2_t, x * e1_z + y * e2_z
     radial = rad + o_r
     return np.stack([radial * sin + o_t * cos, radial * cos - o_t * sin, height + o_z], axis=-1)
@@ -210,62 +229,73 @@ def _find_segments(cum: np.ndarray, lengths: np.ndarray, rng: np.random.Generato
     return fib, start, end
 
 
-def _rotation_taking(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """3x3 rotation taking unit vector ``a`` to unit vector ``b`` (Rodrigues)."""
-    axis = np.cross(a, b)
-    s, c = np.linalg.norm(axis), float(np.dot(a, b))
-    if s < 1e-12:
-        return np.eye(3)
-    k = axis / s
-    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + s * kx + (1 - c) * kx @ kx
+def _rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
+    """3x3 rotation by ``angle`` about the unit vector ``axis`` (right-hand rule, Rodrigues)."""
+    kx = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
+
+
+def _unit_radial(point: np.ndarray) -> np.ndarray:
+    """The unit direction from the yarn axis to ``point`` in the xy plane (x on the axis)."""
+    radial = np.array([point[0], point[1], 0.0])
+    norm = np.linalg.norm(radial)
+    return radial / norm if norm > 1e-12 else np.array([1.0, 0.0, 0.0])
 
 
 def hair(segment: np.ndarray, beta: float, s: float) -> np.ndarray:
-    """A hair flyaway from a fiber segment whose first vertex is the root on the yarn."""
+    """A hair flyaway from a fiber segment whose first vertex is the root on the yarn:
+    squeezed along the axis by ``1 / (1 + 1.5 s)`` and mirrored in x, both about the root,
+    then rotated by ``beta`` about the radial axis through the root."""
     root = segment[0]
     seg = segment - root
-    seg[:, 2] *= 1 - s / 2
-    chord = seg[-1] / np.linalg.norm(seg[-1])
-    radial = np.array([root[0], root[1], 0.0])
-    radial /= max(np.linalg.norm(radial), 1e-12)
-    if np.linalg.norm(radial) < 0.5:  # root on the axis: any horizontal direction
-        radial = np.array([1.0, 0.0, 0.0])
-    axis = np.array([0.0, 0.0, 1.0 if chord[2] >= 0 else -1.0])
-    target = math.cos(beta) * axis + math.sin(beta) * radial
-    return root + seg @ _rotation_taking(chord, target).T
+    seg[:, 2] /= 1 + 1.5 * s
+    seg[:, 0] *= -1
+    return root + seg @ _rotation_about(_unit_radial(root), beta).T
 
 
-def loop(segment: np.ndarray, d: float) -> np.ndarray:
-    """A loop flyaway: half-sine offset ``d sin(i pi / (J - 1)) (v_x, v_y, 0)`` along the
-    radial vector ``v`` of the segment's middle vertex (Eq. 10), ends fixed."""
-    i = np.arange(len(segment))
-    radial = segment[len(segment) // 2, :2]
+def loop(segment: np.ndarray, d_mm: float) -> np.ndarray:
+    """A loop flyaway: the segment's x halved about its first vertex, then the arch
+    ``d_mm sin(i pi / (J - 1)) u`` added along the unit radial direction ``u`` of its last
+    vertex (Eq. 10 with the authors' unit vector; ``d_mm`` is the arch height in mm)."""
     out = segment.copy()
-    out[:, :2] += d * np.sin(i * np.pi / (len(segment) - 1))[:, None] * radial
+    out[:, 0] = out[0, 0] + 0.5 * (out[:, 0] - out[0, 0])
+    i = np.arange(len(out))
+    out += d_mm * np.sin(i * np.pi / (len(out) - 1))[:, None] * _unit_radial(out[-1])
     return out
 
 
-def flyaways(params: YarnParams, fibers: np.ndarray, rng: np.random.Generator):
-    """Alg. 2: ``g`` flyaways copied from the raw yarn's fibers.
+def flyaway_count(g: int, length: float) -> int:
+    """Number of flyaways on ``length`` mm of yarn: ``g`` per 10 mm (see the module notes)."""
+    return int(round(g * FLYAWAYS_PER_MM_AND_G * length))
+
+
+def flyaways(params: YarnParams, fibers: np.ndarray, rng: np.random.Generator,
+             length: float = YARN_LENGTH_MM):
+    """Alg. 2: flyaways copied from the raw yarn's fibers, ``g`` per 10 mm of yarn.
 
     Returns a list of (J, 3) polylines, their kinds and their source fibers.
     """
-    g = params.g
-    is_loop = rng.random(g) < params.p
-    noise = rng.standard_normal(g)
-    lengths = np.where(is_loop, params.l_loop + 0.01 * noise, params.l_hair + 0.05 * noise)
+    count = flyaway_count(params.g, length)
+    is_loop = rng.random(count) < params.p
+    is_long = rng.random(count) < LONG_SHARE
+    noise = rng.standard_normal(count)
+    lengths = np.where(is_loop,
+                       params.l_loop * np.where(is_long, LONG_LOOP_FACTOR, 1) + 0.01 * noise,
+                       params.l_hair * np.where(is_long, LONG_HAIR_FACTOR, 1) + 0.05 * noise)
     step = np.linalg.norm(np.diff(fibers, axis=1), axis=-1)
     cum = np.concatenate([np.zeros((len(fibers), 1)), np.cumsum(step, axis=1)], axis=1)
     lengths = np.maximum(lengths, 2 * step.mean())
     fib, start, end = _find_segments(cum, lengths, rng)
-    d = np.abs(params.d_mean + params.d_std * rng.standard_normal(g))
+    spread = params.d_std * rng.standard_normal(count)
+    d = np.where(is_long, np.abs(LONG_LOOP_FACTOR * params.d_mean + spread),
+                 params.d_mean + np.abs(spread))
     curves = []
-    for k in range(g):
+    for k in range(count):
         sl = slice(start[k], end[k] + 1) if end[k] > start[k] else slice(start[k], end[k] - 1
                                                                           if end[k] else None, -1)
         seg = fibers[fib[k], sl]
-        curves.append(loop(seg, d[k]) if is_loop[k] else hair(seg, params.beta, params.s))
+        curves.append(loop(seg, LOOP_D_UNIT_MM * d[k]) if is_loop[k]
+                      else hair(seg, params.beta, params.s))
     kinds = np.where(is_loop, FiberKind.LOOP, FiberKind.HAIR).astype(np.uint8)
     return curves, kinds, fib
 
@@ -281,7 +311,7 @@ def generate(params: YarnParams, seed: int, length: float = YARN_LENGTH_MM,
     """
     rng = np.random.default_rng(seed)
     core, core_ply = raw_yarn(levels_of(params), rng, length, mapping)
-    curves, kinds, source = flyaways(params, core, rng)
+    curves, kinds, source = flyaways(params, core, rng, length)
     f, v = core.shape[:2]
     sizes = np.concatenate([np.full(f, v), [len(c) for c in curves]])
     points = np.concatenate([core.reshape(-1, 3), *curves]).astype(np.float32)

@@ -10,8 +10,11 @@ Deviations from the paper's value-interval table, and why:
   sampler draws t_y in [0.006, 0.01] and t_x in [t_y, 2.5 t_y], and both thickness classes
   have t_x > t_y (thin 0.01/0.007, thick 0.018/0.01).  We read the table's columns as swapped:
   t_x (the major fiber radius) in [0.006, 0.02], t_y in [0.006, 0.01].
-* ``j_z`` (z jitter of fiber vertices) has no interval in the paper; we allow [0, 0.05] mm
-  and use 0.005 mm where a value is needed (presets).
+* ``j_z`` (z jitter of fiber vertices) has no interval in the paper; as in the authors'
+  script it is a fraction of the fiber pitch (each vertex moves by ``U(-1/2, 1/2) |alpha|
+  j_z`` along the axis); we allow [0, 0.05] and use 0.005 where a value is needed (presets).
+* ``g`` is a density, flyaways per 10 mm of yarn, and ``d_mean``, ``d_std`` are in units of
+  0.1 mm: what the authors' script makes of them (see :mod:`ipm.generator`).
 * A fourth hierarchy level (plied yarns twisted into a cabled yarn, the paper's Fig. 14 d-e)
   is reachable through ``n_yarn`` > 1 with its helix ``alpha_yarn``, ``R_yarn``; the paper's
   dataset has none, so the sampler keeps ``n_yarn = 1`` and the nets do not infer them.
@@ -55,15 +58,15 @@ PAPER_INTERVALS: dict[str, Interval] = {
     "R_ply": Interval(0.053, 1.486, "mm", "ply twist: radius of the ply helix in the yarn"),
     "j": Interval(0.0, 0.3, "", "fiber migration: amplitude of the radial modulation"),
     "j_xy": Interval(0.0, 0.03, "mm", "fiber distribution: jitter of fiber positions"),
-    "j_z": Interval(0.0, 0.05, "mm", "fiber migration: jitter of fiber vertices in z"),
-    "g": Interval(30, 300, "", "flyaway amount: number of flyaways", True),
+    "j_z": Interval(0.0, 0.05, "", "fiber migration: z jitter of fiber vertices / |alpha|"),
+    "g": Interval(30, 300, "", "flyaway amount: flyaways per 10 mm of yarn", True),
     "p": Interval(0.35, 0.65, "", "loop probability of a flyaway"),
     "beta": Interval(0.050, 1.571, "rad", "hair flyaway angle to the yarn axis"),
     "l_hair": Interval(0.222, 14.5, "mm", "hair flyaway length"),
     "s": Interval(0.0, 1.0, "", "hair squeeze (fuzziness)"),
     "l_loop": Interval(0.407, 34.627, "mm", "loop flyaway length"),
-    "d_mean": Interval(0.394, 30.469, "", "mean radial loop amplitude (x radius)"),
-    "d_std": Interval(0.007, 5.0, "", "std of the radial loop amplitude"),
+    "d_mean": Interval(0.394, 30.469, "0.1 mm", "mean radial loop amplitude"),
+    "d_std": Interval(0.007, 5.0, "0.1 mm", "std of the radial loop amplitude"),
 }
 PARAM_ORDER: tuple[str, ...] = tuple(PAPER_INTERVALS)
 
@@ -106,10 +109,10 @@ class YarnParams:
     radii ``t_x``, ``t_y`` and wind around their ply centre on helices of pitch ``alpha``
     (negative: opposite to the ply twist); plies have elliptical cross-sections ``r_x``,
     ``r_y`` and wind around the yarn centre on a helix of pitch ``alpha_ply`` and radius
-    ``R_ply``.  Fiber migration ``j``, jitters ``j_xy`` and ``j_z``.  Flyaways: ``g`` of
-    them, each a loop with probability ``p`` (length ``l_loop``, radial amplitude
-    ``d ~ N(d_mean, d_std)``) or else a hair (length ``l_hair``, squeeze ``s``, angle
-    ``beta``).  ``color`` is the linear RGB albedo of the fibers (not inferred by the paper).
+    ``R_ply``.  Fiber migration ``j``, jitters ``j_xy`` and ``j_z``.  Flyaways: ``g`` per
+    10 mm of yarn, each a loop with probability ``p`` (length ``l_loop``, radial amplitude
+    ``0.1 d`` mm, ``d = d_mean + |N(0, d_std)|``) or else a hair (length ``l_hair``,
+    squeeze ``s``, angle ``beta``).  ``color`` is the linear RGB albedo of the fibers (not inferred by the paper).
     """
 
     n: int

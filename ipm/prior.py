@@ -8,9 +8,9 @@ uniform in their intervals.  A draw with any parameter outside the value interva
 redrawn whole, so the prior's support is exactly the intervals' box.
 
 Deviations: ``m`` is drawn in [40, 200] as the sampler text says (the table allows 20);
-``j_z``, which the paper does not sample, is uniform in [0, 0.02] mm; fiber colour is
-uniform in a range of plausible dyed-yarn albedos (the paper varied colour but gives no
-interval).
+``j_z``, which the paper does not sample, is uniform in [0, 0.02] (a fraction of |alpha|);
+fiber colour is uniform in a range of plausible dyed-yarn albedos (the paper varied colour
+but gives no interval).
 """
 
 from __future__ import annotations

@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Re-makes the shipped nets (nets/models) from scratch: the datasets, then the training of the
+# nine nets of the `ensemble` preset, then the ensemble folder.  This is the whole recipe of
+# the shipped models; nets/models/README.md (the model card) gives its times and accuracy.
+#
+#   bash scripts/make_nets.sh [DATA=data] [RUNS=runs] [OUT=nets/models]
+#
+# Every step resumes: a finished dataset or training run is left as it is, so a stopped
+# script is simply run again.  Training runs as two one-thread processes side by side (the
+# two cores of the reference machine); the harder nets (m, alpha) get more epochs.  Blur
+# augmentation (--blur 1.5 input pixels) from the start, so the nets hold on defocused photos.
+set -euo pipefail
+DATA="${1:-data}"; RUNS="${2:-runs}"; OUT="${3:-nets/models}"
+mkdir -p "$DATA" "$RUNS"
+ipm generate --out "$DATA/train" --count 2000 --seed 0 --spp 4-24
+ipm generate --out "$DATA/val" --count 200 --seed 1 --split val --spp 4-24
+ipm generate --out "$DATA/test" --count 200 --seed 20261122 --split test
+common=(--preset ensemble --data "$DATA/train" --val "$DATA/val" --blur 1.5 --lr 1e-3 --seed 0)
+train() { OMP_NUM_THREADS=1 ipm train "${common[@]}" "$@"; }
+(train --nets m,alpha --epochs 14 --out "$RUNS/make-a" &&
+ train --nets n,thickness --epochs 6 --out "$RUNS/make-b") & first=$!
+train --nets r_x,r_y,alpha_ply,R_ply,flyaways --epochs 8 --out "$RUNS/make-c" & second=$!
+wait "$first"; wait "$second"  # a failed training fails the script
+python3 - "$OUT" "$RUNS/make-a" "$RUNS/make-b" "$RUNS/make-c" <<'PY'
+"""Gather the runs' nets into one ensemble folder (written beside, then swapped in)."""
+import json, shutil, sys
+from pathlib import Path
+
+out, runs = Path(sys.argv[1]), [Path(r) for r in sys.argv[2:]]
+order = ["n", "thickness", "m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply", "flyaways"]
+tmp = out.with_name(out.name + ".new")
+shutil.rmtree(tmp, ignore_errors=True)
+tmp.mkdir(parents=True)
+for run in runs:
+    for net in json.loads((run / "ensemble.json").read_text())["nets"]:
+        shutil.copytree(run / net, tmp / net)
+manifest = {"format": "ipm.nets/1", "preset": "ensemble", "nets": order}
+assert sorted(p.name for p in tmp.iterdir()) == sorted(order), "a net is missing"
+(tmp / "ensemble.json").write_text(json.dumps(manifest, indent=2))
+if (out / "README.md").exists():
+    shutil.copy(out / "README.md", tmp / "README.md")
+shutil.rmtree(out, ignore_errors=True)
+tmp.rename(out)
+print(f"ensemble of {len(order)} nets -> {out}")
+PY

@@ -1,0 +1,135 @@
+"""Image analysis of a yarn photo that uses neither the nets nor the renderer: the yarn's
+core diameter and the period of its ply stripes, in pixels.  It is the independent yardstick
+for fits on photos ipm did not make (the real backlit photos, the Cycles sets): a fit is
+judged by whether its render measures like the photo.
+
+* Signal: how much the yarn differs from the background, in [0, 1]: the background level is
+  the median of the top and bottom tenths of the frame; backlit (dark yarn on a light panel)
+  ``(bg - I) / bg``, frontlit (light yarn on a dark card) ``(I - bg) / (1 - bg)``.
+* Axis: the signal's centroid in each column, a line fitted through them (a photo's yarn is
+  rarely exactly level); every column is shifted so the axis is the middle row.
+* Core diameter: the half-contrast width of the row profile (the median over columns, which
+  flyaways do not move): the width of the run of rows around the peak where the profile is
+  above half its peak, with linear interpolation at both edges.
+* Ply-stripe period: in the band of rows within half the core radius of the axis, each row's
+  autocorrelation along the axis (mean removed), averaged over rows; the period is the lag of
+  the first of its maxima after its first zero crossing that reaches 60 % of the highest
+  (parabolic interpolation): a yarn repeats exactly only after a whole ply turn
+  ``alpha_ply``, since its plies differ, and that later maximum can be the highest.  On a plied yarn
+  this is the distance between neighbouring plies' crossings, ``alpha_ply / n``.
+
+    python -m ipm.benchmarks.photo_measures IMAGE... [--frontlit] [--pixel-size MM]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+from PIL import Image
+from scipy import ndimage
+
+#: A maximum of the autocorrelation counts as the period if it reaches this share of the
+#: highest one (see the module notes).
+FIRST_PEAK_SHARE = 0.6
+
+
+def gray(path: str) -> np.ndarray:
+    """The image as float grayscale in [0, 1] (the mean of its channels)."""
+    with Image.open(path) as im:
+        a = np.asarray(im.convert("RGB"), dtype=np.float64) / 255.0
+    return a.mean(axis=2)
+
+
+def yarn_signal(img: np.ndarray, backlit: bool) -> np.ndarray:
+    """How much each pixel differs from the background, towards the yarn, clipped to [0, 1]."""
+    h = img.shape[0]
+    edge = max(1, h // 10)
+    bg = float(np.median(np.concatenate([img[:edge].ravel(), img[-edge:].ravel()])))
+    sig = (bg - img) / max(bg, 1e-6) if backlit else (img - bg) / max(1 - bg, 1e-6)
+    return np.clip(sig, 0.0, 1.0)
+
+
+def levelled(sig: np.ndarray) -> np.ndarray:
+    """The signal with every column shifted so that the yarn's fitted axis is the middle row."""
+    h, w = sig.shape
+    rows = np.arange(h, dtype=np.float64)[:, None]
+    weight = sig ** 2
+    centroid = (weight * rows).sum(0) / np.maximum(weight.sum(0), 1e-9)
+    x = np.arange(w)
+    slope, offset = np.polyfit(x, centroid, 1, w=np.sqrt(weight.sum(0)) + 1e-9)
+    shift = (slope * x + offset) - (h - 1) / 2
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
+    return ndimage.map_coordinates(sig, [yy + shift[None, :], xx], order=1, mode="nearest")
+
+
+def _crossing(profile: np.ndarray, i: int, j: int, level: float) -> float:
+    """Where the profile crosses ``level`` between neighbouring rows i and j (linear)."""
+    a, b = profile[i], profile[j]
+    return i + (level - a) / (b - a) * (j - i) if b != a else float(i)
+
+
+def core_diameter_px(sig: np.ndarray) -> float:
+    """Half-contrast width (px) of the row profile of a levelled signal."""
+    profile = ndimage.uniform_filter1d(np.median(sig, axis=1), 3)
+    peak = int(np.argmax(profile))
+    half = profile[peak] / 2
+    top = peak
+    while top > 0 and profile[top - 1] > half:
+        top -= 1
+    bottom = peak
+    while bottom < len(profile) - 1 and profile[bottom + 1] > half:
+        bottom += 1
+    lo = _crossing(profile, top - 1, top, half) if top > 0 else 0.0
+    hi = _crossing(profile, bottom, bottom + 1, half) if bottom < len(profile) - 1 else bottom
+    return float(hi - lo)
+
+
+def stripe_period_px(sig: np.ndarray, diameter_px: float) -> float:
+    """Period (px) of the stripes along the axis in the core band of a levelled signal, or
+    NaN when the autocorrelation has no maximum after its first zero crossing."""
+    h, w = sig.shape
+    half = max(1, int(diameter_px / 4))
+    band = sig[(h - 1) // 2 - half:(h - 1) // 2 + half + 1]
+    band = band - band.mean(axis=1, keepdims=True)
+    n = 2 * w
+    spec = np.fft.rfft(band, n=n, axis=1)
+    ac = np.fft.irfft(spec * np.conj(spec), n=n, axis=1)[:, : w // 2].mean(axis=0)
+    ac /= max(ac[0], 1e-12)
+    below = np.flatnonzero(ac < 0)
+    if not len(below):
+        return float("nan")
+    k = np.arange(below[0] + 1, len(ac) - 1)
+    peaks = k[(ac[k] > ac[k - 1]) & (ac[k] >= ac[k + 1]) & (ac[k] > 0)]
+    if not len(peaks):
+        return float("nan")
+    k = int(peaks[np.argmax(ac[peaks] >= FIRST_PEAK_SHARE * ac[peaks].max())])
+    a, b, c = ac[k - 1], ac[k], ac[k + 1]
+    denom = a - 2 * b + c
+    return float(k + (0.5 * (a - c) / denom if denom != 0 else 0.0))
+
+
+def measure(path: str, backlit: bool) -> dict[str, float]:
+    """Core diameter and ply-stripe period (px) of the photo at ``path``."""
+    sig = levelled(yarn_signal(gray(path), backlit))
+    d = core_diameter_px(sig)
+    return {"core_diameter_px": d, "stripe_period_px": stripe_period_px(sig, d)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("images", nargs="+")
+    ap.add_argument("--frontlit", action="store_true", help="light yarn on a dark background")
+    ap.add_argument("--pixel-size", type=float, default=None, help="mm per pixel, for mm")
+    args = ap.parse_args()
+    scale = args.pixel_size or 1.0
+    unit = "mm" if args.pixel_size else "px"
+    print(f"| image | core diameter ({unit}) | stripe period ({unit}) |\n|---|---|---|")
+    for path in args.images:
+        m = measure(path, backlit=not args.frontlit)
+        print(f"| {path} | {m['core_diameter_px'] * scale:.4g} | "
+              f"{m['stripe_period_px'] * scale:.4g} |")
+
+
+if __name__ == "__main__":
+    main()

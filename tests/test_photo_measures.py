@@ -1,0 +1,32 @@
+"""The independent photo yardstick (benchmarks/photo_measures.py) on images built here."""
+
+import numpy as np
+import pytest
+
+from ipm.benchmarks.photo_measures import core_diameter_px, levelled, stripe_period_px, yarn_signal
+
+
+def striped_band(width_px=60.0, period_px=37.0, tilt_px=6.0, h=240, w=600):
+    """A dark yarn of a given half-contrast width on a light panel: a flat-topped band with
+    soft edges, tilted by ``tilt_px`` over the frame, with diagonal stripes of the period."""
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    axis = (h - 1) / 2 + tilt_px * (x / (w - 1) - 0.5)
+    edge = np.abs(y - axis) - width_px / 2
+    band = 1 / (1 + np.exp(edge / 2.0))  # 0.5 exactly at +-width/2
+    stripes = 0.15 * np.cos(2 * np.pi * (x + 0.8 * (y - axis)) / period_px)
+    return 0.8 - 0.6 * band * (0.85 + stripes)
+
+
+def test_core_diameter_and_stripe_period_of_a_tilted_striped_band():
+    img = striped_band()
+    sig = levelled(yarn_signal(img, backlit=True))
+    d = core_diameter_px(sig)
+    assert d == pytest.approx(60.0, rel=0.03)
+    assert stripe_period_px(sig, d) == pytest.approx(37.0, rel=0.02)
+
+
+def test_no_stripes_no_period():
+    img = striped_band()
+    flat = 0.8 - 0.6 * (img < 0.6)  # the band without its stripes
+    sig = levelled(yarn_signal(flat.astype(np.float64), backlit=True))
+    assert np.isnan(stripe_period_px(sig, core_diameter_px(sig)))

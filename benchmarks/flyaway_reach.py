@@ -40,7 +40,8 @@ def main() -> None:
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     rows = ["| preset | core radius (mm) | reach median | reach p95 | hairs median | "
-            "loops median | loops max | loop arch 0.1 d_mean |", "|---|---|---|---|---|---|---|---|"]
+            "loops median | loops max | loop arch 0.1 d_mean |",
+            "|---|---|---|---|---|---|---|---|"]
     rows += [preset_row(name) for name in PRESET_NAMES]
     text = (markdown_header("Flyaway reach (mm) of the 12 presets", COMMAND) + "\n"
             + "\n".join(rows) + "\n")

@@ -17,6 +17,11 @@ judged by whether its render measures like the photo.
   (parabolic interpolation): a yarn repeats exactly only after a whole ply turn
   ``alpha_ply``, since its plies differ, and that later maximum can be the highest.  On a plied yarn
   this is the distance between neighbouring plies' crossings, ``alpha_ply / n``.
+* Fiber width (for a photo's unknown scale): the flyaway fibers in the rows beyond 0.8 core
+  diameters from the axis, thresholded at half the median darkness of their skeleton (their
+  half contrast); the width at each skeleton pixel is twice its distance to the background
+  minus one.  The median over the skeleton pixels of components of at least
+  :data:`MIN_FIBER_PIXELS` px; defocused fibers look wider, so this errs large.
 
     python -m ipm.benchmarks.photo_measures IMAGE... [--frontlit] [--pixel-size MM]
 """
@@ -32,6 +37,8 @@ from scipy import ndimage
 #: A maximum of the autocorrelation counts as the period if it reaches this share of the
 #: highest one (see the module notes).
 FIRST_PEAK_SHARE = 0.6
+#: Flyaway components smaller than this (px) are dust or noise, not fibers.
+MIN_FIBER_PIXELS = 300
 
 
 def gray(path: str) -> np.ndarray:
@@ -107,6 +114,27 @@ def stripe_period_px(sig: np.ndarray, diameter_px: float) -> float:
     a, b, c = ac[k - 1], ac[k], ac[k + 1]
     denom = a - 2 * b + c
     return float(k + (0.5 * (a - c) / denom if denom != 0 else 0.0))
+
+
+def fiber_width_px(sig: np.ndarray, diameter_px: float) -> tuple[float, int]:
+    """(median width in px of the flyaway fibers outside the core, skeleton pixels it rests
+    on) of a levelled signal; NaN and 0 without fibers."""
+    from skimage.morphology import skeletonize
+
+    h, w = sig.shape
+    outside = np.broadcast_to((np.abs(np.arange(h) - (h - 1) / 2) > 0.8 * diameter_px)[:, None],
+                              (h, w))
+    smooth = ndimage.gaussian_filter(sig, 0.7)
+    fibers = ndimage.binary_opening((smooth > 0.25) & outside)
+    labels, count = ndimage.label(fibers)
+    sizes = ndimage.sum(fibers, labels, range(1, count + 1))
+    skeleton = skeletonize(np.isin(labels, 1 + np.flatnonzero(sizes >= MIN_FIBER_PIXELS)))
+    if not skeleton.any():
+        return float("nan"), 0
+    half = (smooth > np.median(smooth[skeleton]) / 2) & outside
+    widths = 2 * ndimage.distance_transform_edt(half)[skeleton & half] - 1
+    widths = widths[widths > 1]
+    return (float(np.median(widths)), len(widths)) if len(widths) else (float("nan"), 0)
 
 
 def measure(path: str, backlit: bool) -> dict[str, float]:

@@ -3,7 +3,13 @@
 import numpy as np
 import pytest
 
-from ipm.benchmarks.photo_measures import core_diameter_px, levelled, stripe_period_px, yarn_signal
+from ipm.benchmarks.photo_measures import (
+    core_diameter_px,
+    fiber_width_px,
+    levelled,
+    stripe_period_px,
+    yarn_signal,
+)
 
 
 def striped_band(width_px=60.0, period_px=37.0, tilt_px=6.0, h=240, w=600):
@@ -30,3 +36,16 @@ def test_no_stripes_no_period():
     flat = 0.8 - 0.6 * (img < 0.6)  # the band without its stripes
     sig = levelled(yarn_signal(flat.astype(np.float64), backlit=True))
     assert np.isnan(stripe_period_px(sig, core_diameter_px(sig)))
+
+
+def test_flyaway_fiber_width():
+    """Curved dark fibers 7 px wide (half contrast) above and below a yarn band."""
+    img = striped_band(h=400, w=800)
+    y, x = np.mgrid[0:400, 0:800].astype(np.float64)
+    for y0, amp in ((60.0, 20.0), (330.0, 15.0)):
+        dist = np.abs(y - (y0 + amp * np.sin(x / 90.0)))
+        img -= 0.4 / (1 + np.exp((dist - 3.5) / 0.6))
+    sig = levelled(yarn_signal(img, backlit=True))
+    width, support = fiber_width_px(sig, core_diameter_px(sig))
+    assert support > 500
+    assert width == pytest.approx(7.0, abs=1.0)

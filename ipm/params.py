@@ -112,7 +112,8 @@ class YarnParams:
     ``R_ply``.  Fiber migration ``j``, jitters ``j_xy`` and ``j_z``.  Flyaways: ``g`` per
     10 mm of yarn, each a loop with probability ``p`` (length ``l_loop``, radial amplitude
     ``0.1 d`` mm, ``d = d_mean + |N(0, d_std)|``) or else a hair (length ``l_hair``,
-    squeeze ``s``, angle ``beta``).  ``color`` is the linear RGB albedo of the fibers (not inferred by the paper).
+    squeeze ``s``, angle ``beta``).  ``color`` is the linear RGB albedo of the fibers (not
+    inferred by the paper).
     """
 
     n: int

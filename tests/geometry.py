@@ -64,3 +64,19 @@ def fiber_turn_rates(core: np.ndarray, ply: np.ndarray, squeeze: float, min_radi
             if np.median(np.hypot(a, b)) >= min_radius:
                 rates.append(turn_rate(a, b, c[:, 2]))
     return np.array(rates)
+
+
+def transported_frame(centre: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Right-handed frame (e_1, e_2, T) along any curve (V, 3) with no twist about T:
+    e_1 is carried from vertex to vertex by projecting it onto the next normal plane
+    (parallel transport to first order), e_2 = T x e_1."""
+    t = np.gradient(centre, axis=0)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    e1 = np.empty_like(centre)
+    a = np.array([1.0, 0.0, 0.0]) if abs(t[0, 0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1[0] = a - (a @ t[0]) * t[0]
+    e1[0] /= np.linalg.norm(e1[0])
+    for i in range(1, len(centre)):
+        v = e1[i - 1] - (e1[i - 1] @ t[i]) * t[i]
+        e1[i] = v / np.linalg.norm(v)
+    return e1, np.cross(t, e1), t

@@ -14,8 +14,9 @@ The proportions (wale 5.5 D, course 2.8 D, neck 1.2 D, head 4.2 D, depth +-0.9 D
 every two centre lines at least 0.85 D apart in knit and purl, 0.7 D where courses of both
 faces meet (garter, rib): real yarn flattens where it crosses (``tests/test_knit.py``).
 A purl stitch has its legs behind, and the side a head or sinker passes follows from the
-stitch it wraps (:func:`course_centreline`); the patterns set the face per course and wale: ``knit`` (stockinette, knit face), ``purl``
-(its back), ``garter`` (courses alternate) and ``rib`` (1x1: wales alternate).
+stitch it wraps (:func:`course_centreline`); the patterns set the face per course and
+wale: ``knit`` (stockinette, knit face), ``purl`` (its back), ``garter`` (courses
+alternate) and ``rib`` (1x1: wales alternate).
 
 The sweep carries the straight yarn of :func:`ipm.generator.generate` along a centre line as
 a further hierarchy level would (the yarn's axis becomes the curve): a fiber point

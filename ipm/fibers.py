@@ -111,3 +111,57 @@ class FiberSet:
     def save_mitsuba(self, path: str | os.PathLike) -> None:
         with atomic_path(path) as tmp:
             tmp.write_text(self.mitsuba_curve_text())
+
+    # -- USD and PLY: for other tools --------------------------------------------------------
+    def save_usd(self, path: str | os.PathLike) -> None:
+        """A USD stage (``.usda`` text or ``.usd``/``.usdc`` binary, by suffix) with one
+        ``BasisCurves`` prim ``/Yarn/Fibers``: linear curves, one per fiber, each with its
+        round width ``2 sqrt(t_x t_y)`` (uniform), and the primvars ``kind`` and ``ply``;
+        millimetres (``metersPerUnit`` 0.001), the yarn axis z up (``upAxis`` Z)."""
+        from pxr import Sdf, Usd, UsdGeom, Vt
+
+        with atomic_path(path) as tmp:
+            stage = Usd.Stage.CreateNew(str(tmp))
+            UsdGeom.SetStageMetersPerUnit(stage, 0.001)
+            UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+            root = UsdGeom.Xform.Define(stage, "/Yarn")
+            stage.SetDefaultPrim(root.GetPrim())
+            curves = UsdGeom.BasisCurves.Define(stage, "/Yarn/Fibers")
+            curves.CreateTypeAttr(UsdGeom.Tokens.linear)
+            curves.CreateCurveVertexCountsAttr(Vt.IntArray.FromNumpy(
+                np.diff(self.offsets).astype(np.int32)))
+            curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(self.points.astype(np.float32)))
+            curves.CreateWidthsAttr(Vt.FloatArray.FromNumpy(
+                (2 * self.round_radii()).astype(np.float32)))
+            curves.SetWidthsInterpolation(UsdGeom.Tokens.uniform)
+            api = UsdGeom.PrimvarsAPI(curves)
+            for name, values in (("kind", self.kind), ("ply", self.ply)):
+                api.CreatePrimvar(name, Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.uniform
+                                  ).Set(Vt.IntArray.FromNumpy(values.astype(np.int32)))
+            stage.GetRootLayer().Save()
+
+    def save_ply(self, path: str | os.PathLike) -> None:
+        """A binary PLY of polylines: ``vertex`` (x, y, z in mm, and its ``fiber``), ``edge``
+        (vertex1, vertex2: each fiber's consecutive vertices) and ``fiber`` (``radius_x``,
+        ``radius_y``, ``kind``, ``ply``, ``first``, ``count``)."""
+        from plyfile import PlyData, PlyElement
+
+        v = np.empty(len(self.points), dtype=[("x", "f4"), ("y", "f4"), ("z", "f4"),
+                                              ("fiber", "i4")])
+        v["x"], v["y"], v["z"] = self.points.T
+        v["fiber"] = self.fiber_index()
+        last = np.zeros(len(self.points), dtype=bool)
+        last[self.offsets[1:] - 1] = True
+        starts = np.flatnonzero(~last)
+        e = np.empty(len(starts), dtype=[("vertex1", "i4"), ("vertex2", "i4")])
+        e["vertex1"], e["vertex2"] = starts, starts + 1
+        f = np.empty(self.num_fibers, dtype=[("radius_x", "f4"), ("radius_y", "f4"),
+                                             ("kind", "u1"), ("ply", "i2"), ("first", "i4"),
+                                             ("count", "i4")])
+        f["radius_x"], f["radius_y"] = self.radii.T
+        f["kind"], f["ply"] = self.kind, self.ply
+        f["first"], f["count"] = self.offsets[:-1], np.diff(self.offsets)
+        data = PlyData([PlyElement.describe(v, "vertex"), PlyElement.describe(e, "edge"),
+                        PlyElement.describe(f, "fiber")], text=False)
+        with atomic_path(path) as tmp:
+            data.write(str(tmp))

@@ -232,3 +232,38 @@ def test_mitsuba_curve_file_has_one_block_per_fiber(tmp_path):
     first = np.loadtxt(blocks[0].splitlines())
     assert first.shape == (np.diff(fs.offsets)[0], 4)
     assert np.allclose(first[:, 3], np.sqrt(fs.radii[0, 0] * fs.radii[0, 1]), rtol=1e-5)
+
+
+@pytest.mark.parametrize("suffix", [".usda", ".usd"])
+def test_usd_export_reads_back_with_pxr(tmp_path, suffix):
+    from pxr import Usd, UsdGeom
+
+    fs = generate(preset("golden"), seed=1)
+    fs.save_usd(tmp_path / f"y{suffix}")
+    stage = Usd.Stage.Open(str(tmp_path / f"y{suffix}"))
+    curves = UsdGeom.BasisCurves(stage.GetPrimAtPath("/Yarn/Fibers"))
+    counts = np.array(curves.GetCurveVertexCountsAttr().Get())
+    assert len(counts) == fs.num_fibers and np.array_equal(counts, np.diff(fs.offsets))
+    assert np.allclose(np.array(curves.GetPointsAttr().Get()), fs.points)
+    widths = np.array(curves.GetWidthsAttr().Get())
+    assert curves.GetWidthsInterpolation() == UsdGeom.Tokens.uniform
+    assert np.allclose(widths, 2 * np.sqrt(fs.radii[:, 0] * fs.radii[:, 1]), rtol=1e-6)
+    assert UsdGeom.GetStageMetersPerUnit(stage) == pytest.approx(0.001)
+    kind = UsdGeom.PrimvarsAPI(curves).GetPrimvar("kind").Get()
+    assert np.array_equal(np.array(kind), fs.kind)
+
+
+def test_ply_export_reads_back_with_plyfile(tmp_path):
+    from plyfile import PlyData
+
+    fs = generate(preset("golden"), seed=1)
+    fs.save_ply(tmp_path / "y.ply")
+    ply = PlyData.read(str(tmp_path / "y.ply"))
+    v, e, f = ply["vertex"], ply["edge"], ply["fiber"]
+    assert len(v) == len(fs.points) and len(f) == fs.num_fibers
+    assert len(e) == len(fs.points) - fs.num_fibers
+    assert np.allclose(np.column_stack([v["x"], v["y"], v["z"]]), fs.points)
+    assert np.array_equal(np.asarray(f["count"]), np.diff(fs.offsets))
+    assert np.allclose(np.column_stack([f["radius_x"], f["radius_y"]]), fs.radii)
+    # every edge joins two consecutive vertices of one fiber
+    assert np.all(np.asarray(v["fiber"])[e["vertex1"]] == np.asarray(v["fiber"])[e["vertex2"]])

@@ -12,15 +12,10 @@ import numpy as np
 import typer
 
 from ipm.errors import UserError
-from ipm.io import check_writable_folder, write_text
+from ipm.io import check_output, write_text
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Fiber-level procedural yarn models from one macro photo.")
-
-
-def check_output(path: Path) -> None:
-    """Fail before any work if ``path`` cannot be written (missing or read-only folder)."""
-    check_writable_folder(path.parent if str(path.parent) else Path("."))
 
 
 @app.command()

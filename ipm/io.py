@@ -58,6 +58,24 @@ def check_writable_folder(folder: Path) -> None:
         raise UserError(f"output folder {folder} is not writable")
 
 
+def check_output(path: Path) -> None:
+    """Fail before any work if the file ``path`` cannot be written (its folder is missing or
+    read-only)."""
+    check_writable_folder(path.parent if str(path.parent) else Path("."))
+
+
+def prepare_folder(folder: Path, what: str = "output folder") -> None:
+    """Create ``folder`` (and its parents) if needed and check that it is writable; a
+    :class:`~ipm.errors.UserError` names it otherwise."""
+    from ipm.errors import UserError
+
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise UserError(f"cannot create {what} {folder}: {e.strerror}") from None
+    check_writable_folder(folder)
+
+
 def write_text(path: str | os.PathLike, text: str) -> None:
     with atomic_path(path) as tmp:
         tmp.write_text(text)

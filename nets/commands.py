@@ -88,8 +88,7 @@ def predict(
 ) -> None:
     """Infer the yarn parameters from a photo with the neural ensemble; prints and writes
     them as flat JSON (the form `ipm curves` reads)."""
-    from ipm.cli import check_output
-    from ipm.io import write_text
+    from ipm.io import check_output, write_text
     from ipm.nets.config import PredictConfig
     from ipm.photo import read_image
 
@@ -120,8 +119,7 @@ def saliency(
     import numpy as np
     from PIL import Image
 
-    from ipm.cli import check_output
-    from ipm.io import atomic_path
+    from ipm.io import atomic_path, check_output
     from ipm.nets.config import SaliencyConfig
     from ipm.nets.data import to_input
     from ipm.nets.saliency import net_for, to_image

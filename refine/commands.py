@@ -9,9 +9,8 @@ from typing import Annotated
 
 import typer
 
-from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
-from ipm.io import check_same_settings, check_writable_folder
+from ipm.io import check_same_settings, prepare_folder
 from ipm.progress import progress_bar
 from ipm.refine.search import SearchOptions
 
@@ -24,14 +23,6 @@ _PARAMS_HELP = ("comma-separated continuous parameters to search (e.g. alpha_ply
 
 def _search_params(text: str) -> tuple[str, ...]:
     return tuple(p.strip() for p in text.split(",") if p.strip())
-
-
-def _prepare_folder(folder: Path) -> None:
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise UserError(f"cannot create output folder {folder}: {e.strerror}") from None
-    check_writable_folder(folder)
 
 
 def fit(
@@ -75,7 +66,7 @@ def fit(
     image = read_image(photo)
     if invert:
         image = 1 - image
-    _prepare_folder(out)
+    prepare_folder(out)
     from ipm.nets.ensemble import Ensemble
 
     ensemble = Ensemble.load(models)
@@ -147,7 +138,7 @@ def compare(
                                               algorithm=algorithm, budget=budget))
     listed = cmp.photos_in(photos, pixel_size, count)
     ensemble = Ensemble.load(models)
-    _prepare_folder(out)
+    prepare_folder(out)
     settings = {"photos": str(photos), "count": len(listed), "pixel_size_mm": pixel_size,
                 "models": str(models) if models else "shipped", "budget": budget,
                 "algorithm": algorithm, "params": list(options.search.params), "prior": prior,

@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 
 from ipm.errors import UserError
-from ipm.io import check_writable_folder
+from ipm.io import check_output
 
 DEFAULT_RENDER_SCALE = 0.25
 DEFAULT_RENDER_SPP = 16
@@ -51,7 +51,7 @@ def render(
     from ipm.render.scene import frame_size
 
     frame_size(scale)
-    check_writable_folder(out.parent if str(out.parent) else Path("."))
+    check_output(out)
     if contact_sheet:
         if params is not None or preset is not None:
             raise UserError("--contact-sheet renders the 12 presets; give no parameters")

@@ -8,7 +8,6 @@ from typing import Annotated
 
 import typer
 
-from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 
 _MODELS_HELP = "folder with ensemble.json (an `ipm train --out`); default: the shipped models"
@@ -90,16 +89,16 @@ def predict(
     them as flat JSON (the form `ipm curves` reads)."""
     from ipm.io import check_output, write_text
     from ipm.nets.config import PredictConfig
-    from ipm.photo import read_image
+    from ipm.photo import Photo
 
     cfg = PredictConfig(photo, models, pixel_size, crops, invert, device)
     if out is not None:
         check_output(out)
-    image = read_image(cfg.photo)
+    shot = Photo.read(cfg.photo, cfg.pixel_size)
     ensemble = _load(cfg.models, cfg.device)
     if w := ensemble.upsampling_warning(cfg.pixel_size):
         typer.echo(f"warning: {w}", err=True)
-    params = ensemble.predict(1 - image if cfg.invert else image, cfg.pixel_size, cfg.crops)
+    params = ensemble.predict(shot.inverted() if cfg.invert else shot, cfg.crops)
     typer.echo(params.to_json())
     if out is not None:
         write_text(out, params.to_json() + "\n")
@@ -124,19 +123,17 @@ def saliency(
     from ipm.nets.data import to_input
     from ipm.nets.saliency import net_for, to_image
     from ipm.nets.saliency import saliency as saliency_map
-    from ipm.photo import read_image, to_scene_pitch
+    from ipm.photo import Photo
 
     cfg = SaliencyConfig(photo, param, models, pixel_size, invert)
     check_output(out)
-    image = read_image(cfg.photo)
+    shot = Photo.read(cfg.photo, cfg.pixel_size)
     net, columns = net_for(_load(cfg.models, "cpu"), cfg.param, cfg.pixel_size)
-    scaled = to_scene_pitch(1 - image if cfg.invert else image, cfg.pixel_size,
-                            net.config.input_scale)
-    if min(scaled.shape[:2]) < 32:
-        raise UserError(f"{photo} is too small for the nets at this pixel size")
+    scaled = (shot.inverted() if cfg.invert else shot).at_pitch(net.config.input_scale,
+                                                                (32, 32))
     s = saliency_map(net, to_input(scaled)[None], columns)[0].numpy()
     full = np.asarray(Image.fromarray(s.astype(np.float32), mode="F").resize(
-        (image.shape[1], image.shape[0]), Image.Resampling.BILINEAR))
+        (shot.image.shape[1], shot.image.shape[0]), Image.Resampling.BILINEAR))
     with atomic_path(out) as tmp:
         Image.fromarray(to_image(full), mode="L").save(tmp, format="PNG")
     typer.echo(f"saliency of {param} -> {out}", err=True)

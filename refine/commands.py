@@ -56,25 +56,25 @@ def fit(
     losses, the settings), neural.png, refined.png and compare.png (photo | neural |
     refined)."""
     from ipm.io import write_text
-    from ipm.photo import read_image, write_png
+    from ipm.photo import Photo, write_png
     from ipm.refine.fit import FitOptions, compare_image, display_renders, fit
     from ipm.render.renderer import Renderer
 
     options = FitOptions(search=SearchOptions(params=_search_params(params),
                                               algorithm=algorithm, budget=budget,
                                               time_s=time_limit))
-    image = read_image(photo)
+    shot = Photo.read(photo, pixel_size)
     if invert:
-        image = 1 - image
+        shot = shot.inverted()
     prepare_folder(out)
     from ipm.nets.ensemble import Ensemble
 
     ensemble = Ensemble.load(models)
-    neural = ensemble.predict(image, pixel_size)
+    neural = ensemble.predict(shot)
     renderer = Renderer(variant)
     with progress_bar("renders, best loss {task.fields[best]}", transient=True) as bar:
         task = bar.add_task("refining" if refine else "scoring", total=budget, best="-")
-        result = fit(image, pixel_size, neural, renderer, options, refine,
+        result = fit(shot, neural, renderer, options, refine,
                      on_eval=lambda i, loss, best: bar.update(task, completed=i,
                                                              best=f"{best:.4f}"),
                      sigma=ensemble.sigma(pixel_size) if prior else None)
@@ -82,8 +82,7 @@ def fit(
         result.warnings.insert(0, w)
     for w in result.warnings:
         typer.echo(f"warning: {w}", err=True)
-    shown, neural_img, refined_img = display_renders(renderer, image, pixel_size, result,
-                                                     options)
+    shown, neural_img, refined_img = display_renders(renderer, shot, result, options)
     write_png(out / "neural.png", neural_img)
     panels, labels = [shown, neural_img], ["photo", f"neural  loss {result.loss_neural:.4f}"]
     if refine:

@@ -75,9 +75,9 @@ def test_every_preset_trains_and_predicts(trained, preset, photo):
         info = json.loads((run / name / "model.json").read_text())
         assert info["epoch"] == 1 and "baseline" in info and info["val"]["loss"] >= 0
         assert (run / name / "checkpoint.safetensors").is_file()
-    from ipm.photo import read_image
+    from ipm.photo import Photo
 
-    params = Ensemble.load(run).predict(read_image(photo), pixel_size_mm=0.01 / SCALE)
+    params = Ensemble.load(run).predict(Photo.read(photo, 0.01 / SCALE))
     assert isinstance(params, YarnParams)
 
 

@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 
 _MODELS_HELP = "folder with ensemble.json (an `ipm train --out`); default: the shipped models"
@@ -76,8 +77,11 @@ def train(
 
 
 def predict(
-    photo: Annotated[Path, typer.Argument(help="photo of a yarn running horizontally")],
-    out: Annotated[Path | None, typer.Option("-o", "--out", help="JSON file to write")] = None,
+    photos: Annotated[list[Path], typer.Argument(help="photos of yarns running horizontally, "
+                                                 "or folders of them")],
+    out: Annotated[Path | None, typer.Option("-o", "--out", help="JSON file to write; for "
+                                             "several photos a folder (created), one "
+                                             "<photo name>.json each")] = None,
     pixel_size: Annotated[float, typer.Option(help=_PIXEL_HELP)] = PIXEL_SIZE_MM,
     models: Annotated[Path | None, typer.Option(help=_MODELS_HELP)] = None,
     crops: Annotated[int, typer.Option(help="crops along the yarn to average")] = 3,
@@ -85,23 +89,42 @@ def predict(
                                          "dark yarn on a light background)")] = False,
     device: Annotated[str, typer.Option(help="cpu | cuda")] = "cpu",
 ) -> None:
-    """Infer the yarn parameters from a photo with the neural ensemble; prints and writes
-    them as flat JSON (the form `ipm curves` reads)."""
-    from ipm.io import check_output, write_text
+    """Infer the yarn parameters from photos with the neural ensemble, in one process.  One
+    photo: prints the parameters and writes them to --out as flat JSON (the form `ipm
+    curves` reads); several photos or a folder: one JSON per photo in the folder --out."""
+    from ipm.dataset import photo_files
+    from ipm.io import check_output, prepare_folder, write_text
     from ipm.nets.config import PredictConfig
     from ipm.photo import Photo
 
-    cfg = PredictConfig(photo, models, pixel_size, crops, invert, device)
-    if out is not None:
-        check_output(out)
-    shot = Photo.read(cfg.photo, cfg.pixel_size)
+    files = [f for p in photos for f in (photo_files(p) if p.is_dir() else [p])]
+    if not files:
+        raise UserError(f"{', '.join(map(str, photos))} holds no photos")
+    cfg = PredictConfig(tuple(files), models, pixel_size, crops, invert, device)
+    single = len(photos) == 1 and not photos[0].is_dir()
+    if single:
+        targets = [out]
+        if out is not None:
+            check_output(out)
+    else:
+        if out is None:
+            raise UserError("several photos: give --out FOLDER for their JSON files")
+        targets = [out / f"{f.stem}.json" for f in files]
+        if len(set(targets)) < len(targets):
+            raise UserError("two photos share a name; their JSON files would collide")
+        prepare_folder(out)
     ensemble = _load(cfg.models, cfg.device)
     if w := ensemble.upsampling_warning(cfg.pixel_size):
         typer.echo(f"warning: {w}", err=True)
-    params = ensemble.predict(shot.inverted() if cfg.invert else shot, cfg.crops)
-    typer.echo(params.to_json())
-    if out is not None:
-        write_text(out, params.to_json() + "\n")
+    for file, target in zip(cfg.photos, targets, strict=True):
+        shot = Photo.read(file, cfg.pixel_size)
+        params = ensemble.predict(shot.inverted() if cfg.invert else shot, cfg.crops)
+        if single:
+            typer.echo(params.to_json())
+        else:
+            typer.echo(f"{file} -> {target}", err=True)
+        if target is not None:
+            write_text(target, params.to_json() + "\n")
 
 
 def saliency(

@@ -93,6 +93,24 @@ def test_predict_cli(trained, photo, tmp_path):
     assert r.returncode == 0, r.stderr
 
 
+def test_predict_several_photos_in_one_process(trained, photo, tmp_path):
+    import shutil
+
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    for name in ("a.png", "b.png"):
+        shutil.copy(photo, folder / name)
+    args = ("--pixel-size", 0.01 / SCALE, "--models", trained["ensemble"])
+    r = ipm("predict", folder, *args, "-o", tmp_path / "out")
+    assert r.returncode == 0, r.stderr
+    one = ipm("predict", photo, *args)
+    for name in ("a", "b"):
+        written = YarnParams.load(tmp_path / "out" / f"{name}.json")
+        assert written == YarnParams.from_json(one.stdout)
+    r = ipm("predict", folder / "a.png", folder / "b.png", *args)
+    assert r.returncode == 2 and "--out FOLDER" in r.stderr
+
+
 def test_predict_warns_when_the_photo_is_coarser_than_the_nets(trained, photo):
     """The tiny nets work at 0.1 mm per pixel: a photo of 0.1 mm passes, one of 0.2 mm is
     upsampled for every net, and that is said (the prediction still comes)."""
@@ -233,7 +251,8 @@ def test_predict_bad_photo(trained, tmp_path, kind, message):
     from ipm.nets.commands import predict
 
     with pytest.raises(UserError, match=message):
-        predict(_bad_photo(tmp_path, kind), pixel_size=0.01 / SCALE, models=trained["ensemble"])
+        predict([_bad_photo(tmp_path, kind)], pixel_size=0.01 / SCALE,
+                models=trained["ensemble"])
 
 
 def test_predict_bad_photo_cli(trained, tmp_path):
@@ -249,7 +268,7 @@ def test_predict_accepts_other_modes(trained, photo, tmp_path, mode, capsys):
     img = (Image.fromarray(np.asarray(img.convert("L")).astype(np.uint16) * 257)
            if mode == "I;16" else img.convert(mode))
     img.save(tmp_path / "m.png")
-    predict(tmp_path / "m.png", pixel_size=0.01 / SCALE, models=trained["ensemble"])
+    predict([tmp_path / "m.png"], pixel_size=0.01 / SCALE, models=trained["ensemble"])
     assert YarnParams.from_json(capsys.readouterr().out)
 
 

@@ -32,8 +32,8 @@ def fit(
                                       "renders and compare.png")] = Path("fit"),
     refine: Annotated[bool, typer.Option("--refine/--no-refine", help="refine the nets' "
                                          "guess by render-and-compare: searches the ply "
-                                         "twist alpha_ply (on held-out renders its error "
-                                         "fell by 34%; docs/compare)")] = False,
+                                         "twist alpha_ply (measured in docs/compare)")]
+    = False,
     pixel_size: Annotated[float, typer.Option(help="mm per photo pixel at the yarn (the "
                                               "scene's is 0.01)")] = PIXEL_SIZE_MM,
     models: Annotated[Path | None, typer.Option(help="trained ensemble folder (default: the "

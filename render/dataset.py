@@ -44,13 +44,12 @@ from ipm.render.scene import DEFAULT_OPTIONS, SceneOptions, frame_size, pixel_si
 SETTINGS = "dataset.json"
 IMAGES = "images"
 
-#: Defaults chosen by measurement (benchmarks/README.md, "Render speed"): scale 0.25 (500 x
-#: 150 px) is the input scale of the default nets, so their data needs no resampling; 6 spp
-#: of the scene's stratified sampler and weighted lights are cleaner than 8 independent ones
-#: (:mod:`ipm.render.scene`) and bring the render noise below the fiber contrast; 2000
-#: images take 16 min on 2 cores.  The shipped nets were trained on ``--spp 4-24`` (several
-#: noise levels, 24 min for 2000).  The thinnest fibers are 0.3 px at scale 0.25: scale 0.5
-#: keeps them at 0.6 px, for nets trained at a higher input scale (``--scale 0.5``).
+#: Defaults chosen by measurement (benchmarks/results/render_speed.md): scale 0.25 (500 x 150
+#: px) is the input scale of the default nets, so their data needs no resampling; 6 spp of
+#: the scene's stratified sampler bring the render noise below the fiber contrast.  The
+#: shipped nets were trained on ``--spp 4-24`` (several noise levels).  The thinnest fibers
+#: are 0.3 px at scale 0.25: scale 0.5 keeps them at 0.6 px, for nets trained at a higher
+#: input scale (``--scale 0.5``).
 DEFAULT_SCALE = 0.25
 DEFAULT_SPP = 6
 

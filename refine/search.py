@@ -76,6 +76,8 @@ class SearchOptions:
                             f"for {len(self.params)} parameters, got {self.budget}")
         if not 0 < self.width <= 1:
             raise UserError(f"width must be in (0, 1], got {self.width}")
+        if self.time_s is not None and not (np.isfinite(self.time_s) and self.time_s > 0):
+            raise UserError(f"time must be a positive number of seconds, got {self.time_s}")
         if self.prior_weight < 0 or self.box_sigmas <= 0:
             raise UserError(f"prior_weight must be >= 0 and box_sigmas > 0, got "
                             f"{self.prior_weight}, {self.box_sigmas}")

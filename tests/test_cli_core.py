@@ -91,3 +91,10 @@ def test_atomic_writes_leave_files_readable_like_open_does(tmp_path):
         assert stat.S_IMODE((tmp_path / "a.json").stat().st_mode) == 0o644
     finally:
         os.umask(mask)
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan"])
+def test_fit_rejects_a_bad_time_limit(tmp_path, value):
+    r = ipm("fit", tmp_path / "p.png", "--refine", "--time", value, "--out", tmp_path / "f")
+    assert r.returncode == 2 and r.stderr.startswith("error: time must be"), r.stderr
+    assert r.stderr.count("\n") == 1 and not (tmp_path / "f").exists()

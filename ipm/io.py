@@ -64,6 +64,17 @@ def check_output(path: Path) -> None:
     check_writable_folder(path.parent if str(path.parent) else Path("."))
 
 
+def check_not_inputs(outputs: list[Path], inputs: list[Path | None]) -> None:
+    """Refuse, before any work, to write over a file the command reads (``ipm render y.json
+    -o y.png`` would replace y.json with its sidecar)."""
+    from ipm.errors import UserError
+
+    given = {Path(p).resolve() for p in inputs if p is not None}
+    for out in outputs:
+        if Path(out).resolve() in given:
+            raise UserError(f"{out} is an input of this command; choose another output")
+
+
 def prepare_folder(folder: Path, what: str = "output folder") -> None:
     """Create ``folder`` (and its parents) if needed and check that it is writable; a
     :class:`~ipm.errors.UserError` names it otherwise."""

@@ -93,7 +93,7 @@ def predict(
     photo: prints the parameters and writes them to --out as flat JSON (the form `ipm
     curves` reads); several photos or a folder: one JSON per photo in the folder --out."""
     from ipm.dataset import photo_files
-    from ipm.io import check_output, prepare_folder, write_text
+    from ipm.io import check_not_inputs, check_output, prepare_folder, write_text
     from ipm.nets.config import PredictConfig
     from ipm.photo import Photo
 
@@ -112,6 +112,8 @@ def predict(
         targets = [out / f"{f.stem}.json" for f in files]
         if len(set(targets)) < len(targets):
             raise UserError("two photos share a name; their JSON files would collide")
+    check_not_inputs([t for t in targets if t is not None], files)
+    if not single:
         prepare_folder(out)
     ensemble = _load(cfg.models, cfg.device)
     if w := ensemble.upsampling_warning(cfg.pixel_size):
@@ -141,7 +143,7 @@ def saliency(
     import numpy as np
     from PIL import Image
 
-    from ipm.io import atomic_path, check_output
+    from ipm.io import atomic_path, check_not_inputs, check_output
     from ipm.nets.config import SaliencyConfig
     from ipm.nets.data import to_input
     from ipm.nets.saliency import net_for, to_image
@@ -150,6 +152,7 @@ def saliency(
 
     cfg = SaliencyConfig(photo, param, models, pixel_size, invert)
     check_output(out)
+    check_not_inputs([out], [photo])
     shot = Photo.read(cfg.photo, cfg.pixel_size)
     net, columns = net_for(_load(cfg.models, "cpu"), cfg.param, cfg.pixel_size)
     scaled = (shot.inverted() if cfg.invert else shot).at_pitch(net.config.input_scale,

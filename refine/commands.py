@@ -10,7 +10,7 @@ from typing import Annotated
 import typer
 
 from ipm.frame import PIXEL_SIZE_MM
-from ipm.io import check_same_settings, prepare_folder
+from ipm.io import check_not_inputs, check_same_settings, prepare_folder
 from ipm.progress import progress_bar
 from ipm.refine.search import SearchOptions
 
@@ -63,6 +63,8 @@ def fit(
     options = FitOptions(search=SearchOptions(params=_search_params(params),
                                               algorithm=algorithm, budget=budget,
                                               time_s=time_limit))
+    check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
+                                         "params.json")], [photo])
     shot = Photo.read(photo, pixel_size)
     if invert:
         shot = shot.inverted()

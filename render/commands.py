@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 
 from ipm.errors import UserError
-from ipm.io import check_output
+from ipm.io import check_not_inputs, check_output
 
 DEFAULT_RENDER_SCALE = 0.25
 DEFAULT_RENDER_SPP = 16
@@ -63,6 +63,10 @@ def render(
     if (params is None) == (preset is None):
         raise UserError("give a parameter file or --preset NAME (or --contact-sheet)")
     p = get_preset(preset) if preset else YarnParams.load(params)
+    xml = Path(out).with_suffix(".xml")
+    check_not_inputs([xml, xml.with_name(xml.stem + "_curves.txt")]
+                     if format is RenderFormat.xml else [out, out.with_suffix(".json")],
+                     [params])
     if format is RenderFormat.xml:
         from ipm.render.export import save_scene_xml
 

@@ -98,3 +98,20 @@ def test_fit_rejects_a_bad_time_limit(tmp_path, value):
     r = ipm("fit", tmp_path / "p.png", "--refine", "--time", value, "--out", tmp_path / "f")
     assert r.returncode == 2 and r.stderr.startswith("error: time must be"), r.stderr
     assert r.stderr.count("\n") == 1 and not (tmp_path / "f").exists()
+
+
+def test_an_output_that_is_an_input_is_refused(tmp_path):
+    from PIL import Image
+
+    params, photo = tmp_path / "p.json", tmp_path / "neural.png"
+    params.write_text(preset("golden").to_json())
+    Image.new("RGB", (64, 32)).save(photo)
+    before = params.read_bytes(), photo.read_bytes()
+    for args in (("curves", params, "-o", params),
+                 ("render", params, "-o", tmp_path / "p.png"),  # its sidecar is p.json
+                 ("predict", photo, "-o", photo),
+                 ("fit", photo, "--out", tmp_path)):
+        r = ipm(*args, cwd=tmp_path)
+        assert r.returncode == 2 and "is an input of this command" in r.stderr, (args, r.stderr)
+        assert r.stderr.count("\n") == 1
+    assert (params.read_bytes(), photo.read_bytes()) == before

@@ -59,8 +59,12 @@ def check_writable_folder(folder: Path) -> None:
 
 
 def check_output(path: Path) -> None:
-    """Fail before any work if the file ``path`` cannot be written (its folder is missing or
-    read-only)."""
+    """Fail before any work if the file ``path`` cannot be written (it is a folder, or its
+    folder is missing or read-only)."""
+    from ipm.errors import UserError
+
+    if Path(path).is_dir():
+        raise UserError(f"{path} is a folder; give a file name")
     check_writable_folder(path.parent if str(path.parent) else Path("."))
 
 

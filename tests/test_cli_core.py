@@ -115,3 +115,17 @@ def test_an_output_that_is_an_input_is_refused(tmp_path):
         assert r.returncode == 2 and "is an input of this command" in r.stderr, (args, r.stderr)
         assert r.stderr.count("\n") == 1
     assert (params.read_bytes(), photo.read_bytes()) == before
+
+
+def test_an_output_file_that_is_a_folder_is_refused(tmp_path):
+    from PIL import Image
+
+    params, photo, folder = tmp_path / "p.json", tmp_path / "y.png", tmp_path / "d"
+    params.write_text(preset("golden").to_json())
+    Image.new("RGB", (64, 32)).save(photo)
+    folder.mkdir()
+    for args in (("sample", "-o", folder), ("curves", params, "-o", folder),
+                 ("render", params, "-o", folder), ("predict", photo, "-o", folder)):
+        r = ipm(*args)
+        assert r.returncode == 2 and "is a folder" in r.stderr, (args, r.stderr)
+        assert r.stderr.count("\n") == 1

@@ -293,6 +293,19 @@ def test_predict_bad_models(damaged_run, damage, message):
         Ensemble.load(damaged_run)
 
 
+def test_predict_nan_weights_in_an_integer_net_cli(damaged_run, photo):
+    from safetensors.torch import load_file, save_file
+
+    path = damaged_run / "m" / "model.safetensors"
+    tensors = load_file(path)
+    tensors = {k: v.fill_(float("nan")) if v.is_floating_point() else v
+               for k, v in tensors.items()}
+    save_file(tensors, path)
+    r = ipm("predict", photo, "--pixel-size", 0.01 / SCALE, "--models", damaged_run)
+    _one_line_error(r)
+    assert "non-finite weights" in r.stderr
+
+
 def test_predict_bad_models_cli(damaged_run, photo):
     (damaged_run / "m" / "model.safetensors").write_bytes(b"\x80\x04pickle")
     r = ipm("predict", photo, "--pixel-size", 0.01 / SCALE, "--models", damaged_run)

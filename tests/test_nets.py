@@ -277,6 +277,7 @@ def test_shipped_sigma_is_the_validation_mae_as_a_gaussian_std():
     assert sigma["R_ply"] == pytest.approx(mae * np.sqrt(np.pi / 2)) and sigma["R_ply"] > 0
 
 
+@pytest.mark.slow  # renders
 def test_shipped_nets_hold_on_a_blurred_photo():
     """A photo's defocus: the shipped nets, trained with blur augmentation, keep R_ply and m
     on renders blurred by a pixel; the nets shipped before that (commit a046881) miss both

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import statistics
 import subprocess
 import sys
@@ -21,6 +20,8 @@ import time
 from pathlib import Path
 
 from ipm.benchmarks.machine import markdown_header, publish
+
+DEFAULT_IPM = str(Path(sys.executable).parent / "ipm")
 
 
 def wall(args: list[str]) -> tuple[float, int]:
@@ -61,7 +62,8 @@ def main() -> None:
     ap.add_argument("--pixel-size", type=float, default=0.04)
     ap.add_argument("--count", type=int, default=20)
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--ipm", default=shutil.which("ipm") or "ipm", help="the ipm executable")
+    ap.add_argument("--ipm", default=DEFAULT_IPM, help="the ipm executable (default: the one "
+                    "installed beside this Python)")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     photos = sorted(p for p in args.photos.iterdir() if p.suffix == ".png")[:args.count]
@@ -86,7 +88,7 @@ def main() -> None:
         rows.append(f"| {len(photos)} photos, one `ipm predict` call | {together:.1f} |")
     command = " ".join(["python -m ipm.benchmarks.startup --photos", str(args.photos),
                         *px, "--count", str(args.count), "--repeats", str(args.repeats)]
-                       + (["--ipm", args.ipm] if args.ipm != shutil.which("ipm") else [])
+                       + (["--ipm", args.ipm] if args.ipm != DEFAULT_IPM else [])
                        + (["--out", args.out] if args.out else []))
     text = (markdown_header("ipm start-up time", command, "torch") + "\n"
             + "\n".join(rows) + "\n\n"

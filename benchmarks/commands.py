@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from ipm.io import check_writable_folder
+from ipm.io import prepare_folder
 
 
 def bench(
@@ -43,13 +43,7 @@ def bench(
                    **({"refine_count": refine_count} if refine_count is not None else {}))
     opts = replace(opts, robust_count=min(opts.robust_count, opts.count),
                    refine_count=min(opts.refine_count, opts.count))
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        from ipm.errors import UserError
-
-        raise UserError(f"cannot create report folder {out}: {e.strerror}") from None
-    check_writable_folder(out)
+    prepare_folder(out, "report folder")
     with progress_bar() as bar:
         tasks: dict[str, int] = {}
 

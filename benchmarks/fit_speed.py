@@ -44,7 +44,7 @@ def load() -> str:
 
 
 def main() -> None:
-    from ipm.nets.data import read_manifest
+    from ipm.dataset import read_manifest
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, required=True, help="a dataset made by ipm generate")

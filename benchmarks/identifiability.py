@@ -67,7 +67,6 @@ def sweep(objective, truth, name: str) -> dict[str, dict]:
 
 def run(data: str, names, yarns: int, scale: float, spp: int, seeds_per_eval: int) -> dict:
     from ipm.benchmarks.report import load_records
-    from ipm.photo import read_image, to_scene_pitch
     from ipm.refine.fit import match_colour, photo_tilt
     from ipm.refine.objective import RenderObjective
     from ipm.render.renderer import Renderer
@@ -75,7 +74,7 @@ def run(data: str, names, yarns: int, scale: float, spp: int, seeds_per_eval: in
     renderer = Renderer()
     results: dict[str, list] = {n: [] for n in names}
     for i, rec in enumerate(load_records(data, yarns)):
-        photo = to_scene_pitch(read_image(rec.image), rec.pixel_size_mm, scale)
+        photo = rec.photo().at_pitch(scale)
         objective = RenderObjective(renderer, photo, scale, spp, seeds_per_eval=seeds_per_eval,
                                     tilt_deg=photo_tilt(photo))
         truth = match_colour(objective, rec.params, photo)

@@ -3,7 +3,7 @@ never used for training: per-parameter MAE in raw units and in % of the paramete
 interval, beside the predict-the-mean baseline (the mean training label, stored with each
 net) and the paper's validation table; ply-count and thickness-class accuracy beside the
 majority class.  ``--blur-mm`` blurs every photo first (a Gaussian of that sigma in mm, in
-linear light: :class:`ipm.refine.compare.PhotoPrep`), to see how the nets hold up on a
+linear light: :meth:`ipm.photo.Photo.defocused`), to see how the nets hold up on a
 photo with the defocus a render lacks.
 
     python -m ipm.benchmarks.nets_accuracy --data data/test [--models DIR] [--blur-mm S]
@@ -17,16 +17,15 @@ import argparse
 import numpy as np
 
 from ipm.benchmarks.machine import markdown_header, publish
-from ipm.nets.data import read_manifest
+from ipm.dataset import read_manifest
 from ipm.nets.ensemble import Ensemble
-from ipm.params import PAPER_INTERVALS, PARAM_ORDER, THICKNESS_CLASSES
-from ipm.refine.compare import PhotoPrep
-
-#: The paper's validation errors of the parameter-specific networks (Table "Validation loss
-#: of different networks").
-PAPER = {"r_x": 0.0080, "r_y": 0.0066, "m": 12, "alpha": 0.0807, "alpha_ply": 0.0614,
-         "R_ply": 0.00444}
-RAW_CONTINUOUS = ("m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply")
+from ipm.params import (
+    PAPER_INTERVALS,
+    PAPER_VALIDATION_MAE,
+    PARAM_ORDER,
+    RAW_CONTINUOUS,
+    THICKNESS_CLASSES,
+)
 
 
 def main() -> None:
@@ -40,8 +39,9 @@ def main() -> None:
     args = ap.parse_args()
     ens = Ensemble.load(args.models)
     records = read_manifest(args.data)
-    prep = PhotoPrep(blur_mm=args.blur_mm)
-    pred = [ens.predict(prep.load(r), r.pixel_size_mm, args.crops) for r in records]
+    if not 0 <= args.blur_mm <= 1:
+        ap.error(f"--blur-mm must be in [0, 1] mm, got {args.blur_mm}")
+    pred = [ens.predict(r.photo().defocused(args.blur_mm), args.crops) for r in records]
     true = [r.params for r in records]
     pairs = list(zip(pred, true, strict=True))
     base = ens.mean_prediction(records[0].pixel_size_mm)  # a dataset has one scale
@@ -57,7 +57,7 @@ def main() -> None:
         name = f"**{k}**" if k in RAW_CONTINUOUS else k
         rows.append(f"| {name} | {mae:.4g} {iv.unit} | {100 * mae / span:.1f} | {b:.4g} | "
                     f"{100 * b / span:.1f} | {100 * (1 - mae / b):+.0f}% | "
-                    f"{PAPER.get(k, '')} |")
+                    f"{PAPER_VALIDATION_MAE.get(k, '')} |")
     acc_n = np.mean([p.n == t.n for p, t in pairs])
     acc_t = np.mean([p.thickness == t.thickness for p, t in pairs])
     maj_n = max(np.mean([t.n == c for t in true]) for c in range(2, 7))

@@ -31,6 +31,7 @@ from ipm.nets.ensemble import Ensemble
 from ipm.nets.model import NetConfig, YarnNet, frame_size
 from ipm.nets.objective import Objective
 from ipm.nets.tasks import ENSEMBLE_TASKS
+from ipm.photo import Photo
 
 COMMAND = "python -m ipm.benchmarks.nets_speed --out benchmarks/results/nets_speed.md"
 
@@ -69,8 +70,8 @@ def predict_seconds(encoder: str, width: float, scale: float) -> float:
     nets = {t.name: YarnNet(NetConfig(t.name, encoder, width, scale)).eval()
             for t in ENSEMBLE_TASKS}
     ens = Ensemble(nets, {}, None)
-    photo = np.random.default_rng(0).random((600, 2000, 3), dtype=np.float32)
-    return median_time(lambda: ens.predict(photo, 0.01), repeats=5)
+    photo = Photo(np.random.default_rng(0).random((600, 2000, 3), dtype=np.float32), 0.01)
+    return median_time(lambda: ens.predict(photo), repeats=5)
 
 
 def epoch_seconds(task: str, encoder: str, width: float, scale: float, batch: int, steps: int,

@@ -33,19 +33,24 @@ import numpy as np
 from ipm.benchmarks.machine import machine_info
 from ipm.errors import UserError
 from ipm.io import check_same_settings, write_text
-from ipm.params import PAPER_INTERVALS, THICKNESS_CLASSES, YarnParams
+from ipm.params import (
+    FLYAWAY,
+    PAPER_INTERVALS,
+    PAPER_VALIDATION_MAE,
+    RAW_CONTINUOUS,
+    THICKNESS_CLASSES,
+    YarnParams,
+)
+from ipm.photo import Photo
 from ipm.refine.compare import summary as refine_summary
 from ipm.refine.search import SearchOptions
 
-#: The paper's validation errors of its parameter-specific networks (Table 2).
-PAPER = {"r_x": 0.0080, "r_y": 0.0066, "m": 12, "alpha": 0.0807, "alpha_ply": 0.0614,
-         "R_ply": 0.00444}
+PAPER = PAPER_VALIDATION_MAE
 #: The paper's costs (Experiments): generator, Blender render, training on three GPUs.
 PAPER_SPEED = {"generate_s": "6-12", "render_s": "60-240",
                "train_h_one_net": "2.5 (ResNet18, one parameter, 1000 epochs, 3 GPUs)",
                "train_h_reg": "about 11 (full regression net, 3 GPUs)"}
-RAW = ("m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply")
-FLYAWAY = ("j", "j_xy", "j_z", "g", "p", "beta", "l_hair", "s", "l_loop", "d_mean", "d_std")
+RAW = RAW_CONTINUOUS
 VARIANTS = ("reg", "reg-ae", "reg-latent", "reg-ae-latent")
 ENSEMBLE = "ensemble"
 #: (kind, level) perturbations of the robustness stage: exposure in stops (the paper's
@@ -113,7 +118,7 @@ def heldout_set(folder: Path, opts: BenchOptions, progress=None) -> Path:
 def load_records(folder: Path, count: int) -> list:
     """The first ``count`` records by image name (a manifest lists them in the order the
     workers finished), each with its fiber seed."""
-    from ipm.nets.data import read_manifest
+    from ipm.dataset import read_manifest
 
     records = sorted(read_manifest(folder), key=lambda r: str(r.image))
     if len(records) < count:
@@ -150,15 +155,13 @@ def load_approaches(models: Path | None, variants: Path | None) -> dict:
 
 def predict_all(approaches: dict, records: list, progress=None) -> dict:
     """``{approach: [params dict per photo]}`` and the ensemble's predict time per photo."""
-    from ipm.photo import read_image
-
     preds: dict[str, list] = {name: [] for name in approaches}
     seconds = []
     for i, r in enumerate(records):
-        image = read_image(r.image)
+        photo = r.photo()
         for name, ens in approaches.items():
             t0 = time.perf_counter()
-            preds[name].append(ens.predict(image, r.pixel_size_mm).to_dict())
+            preds[name].append(ens.predict(photo).to_dict())
             if name == ENSEMBLE:
                 seconds.append(time.perf_counter() - t0)
         if progress:
@@ -235,41 +238,42 @@ def refine_all(folder: Path, records: list, neural: list[dict], sigma: dict, bud
 
 # --- stage 4: robustness ----------------------------------------------------------------------
 
-def perturb(image: np.ndarray, kind: str, level: float) -> np.ndarray:
-    """The sRGB image (H, W, 3) under one capture change (deterministic: the noise is
-    seeded)."""
-    import kornia
-    import torch
+def perturb(photo: Photo, kind: str, level: float) -> Photo:
+    """The photo under one capture change (deterministic: the noise is seeded); blur
+    ``level`` is a sigma in photo pixels (:meth:`~ipm.photo.Photo.defocused`)."""
+    from dataclasses import replace
 
-    from ipm.photo import linear_to_srgb, srgb_to_linear
+    from ipm.photo import linear_to_srgb
 
+    image = photo.image
     if kind == "clean":
-        return image
-    if kind == "exposure":
-        return linear_to_srgb(np.clip(srgb_to_linear(image) * 2.0 ** level, 0, 1))
-    if kind == "noise":
-        rng = np.random.default_rng(0)
-        return np.clip(image + rng.normal(0, level, image.shape), 0, 1).astype(np.float32)
-    x = torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)[None]
+        return photo
     if kind == "blur":
-        k = 2 * int(np.ceil(3 * level)) + 1
-        y = kornia.filters.gaussian_blur2d(x, (k, k), (level, level), border_type="replicate")
+        return photo.defocused(level * photo.pixel_size_mm)
+    if kind == "exposure":
+        image = linear_to_srgb(np.clip(photo.linear * 2.0 ** level, 0, 1))
+    elif kind == "noise":
+        rng = np.random.default_rng(0)
+        image = np.clip(image + rng.normal(0, level, image.shape), 0, 1).astype(np.float32)
     elif kind == "rotation":
-        y = kornia.geometry.transform.rotate(x, torch.tensor([level]), padding_mode="border")
+        import kornia
+        import torch
+
+        x = torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)
+        y = kornia.geometry.transform.rotate(x[None], torch.tensor([level]),
+                                             padding_mode="border")
+        image = y[0].permute(1, 2, 0).numpy()
     else:
         raise ValueError(f"unknown perturbation {kind!r}")
-    return y[0].permute(1, 2, 0).numpy()
+    return replace(photo, image=image)
 
 
 def robustness(ens, records: list, progress=None) -> list[dict]:
     """The ensemble's MAE (% of range) per raw-yarn parameter under each perturbation."""
-    from ipm.photo import read_image
-
-    images = [read_image(r.image) for r in records]
+    photos = [r.photo() for r in records]
     rows = []
     for j, (kind, level) in enumerate(PERTURBATIONS):
-        preds = [ens.predict(perturb(img, kind, level), r.pixel_size_mm)
-                 for img, r in zip(images, records, strict=True)]
+        preds = [ens.predict(perturb(photo, kind, level)) for photo in photos]
         pct = {k: float(100 * np.mean([abs(getattr(p, k) - getattr(r.params, k))
                                        for p, r in zip(preds, records, strict=True)]) / span(k))
                for k in RAW}

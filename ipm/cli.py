@@ -12,15 +12,10 @@ import numpy as np
 import typer
 
 from ipm.errors import UserError
-from ipm.io import check_writable_folder, write_text
+from ipm.io import check_not_inputs, check_output, write_text
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Fiber-level procedural yarn models from one macro photo.")
-
-
-def check_output(path: Path) -> None:
-    """Fail before any work if ``path`` cannot be written (missing or read-only folder)."""
-    check_writable_folder(path.parent if str(path.parent) else Path("."))
 
 
 @app.command()
@@ -76,6 +71,7 @@ def curves(
 
     p = YarnParams.load(params)
     check_output(out)
+    check_not_inputs([out], [params])
     fs = generate(p, seed)
     (fs.save_npz if format is CurveFormat.npz else fs.save_mitsuba)(out)
     typer.echo(f"{fs.num_fibers} fibers, {len(fs.points)} vertices -> {out}", err=True)

@@ -58,6 +58,39 @@ def check_writable_folder(folder: Path) -> None:
         raise UserError(f"output folder {folder} is not writable")
 
 
+def check_output(path: Path) -> None:
+    """Fail before any work if the file ``path`` cannot be written (it is a folder, or its
+    folder is missing or read-only)."""
+    from ipm.errors import UserError
+
+    if Path(path).is_dir():
+        raise UserError(f"{path} is a folder; give a file name")
+    check_writable_folder(path.parent if str(path.parent) else Path("."))
+
+
+def check_not_inputs(outputs: list[Path], inputs: list[Path | None]) -> None:
+    """Refuse, before any work, to write over a file the command reads (``ipm render y.json
+    -o y.png`` would replace y.json with its sidecar)."""
+    from ipm.errors import UserError
+
+    given = {Path(p).resolve() for p in inputs if p is not None}
+    for out in outputs:
+        if Path(out).resolve() in given:
+            raise UserError(f"{out} is an input of this command; choose another output")
+
+
+def prepare_folder(folder: Path, what: str = "output folder") -> None:
+    """Create ``folder`` (and its parents) if needed and check that it is writable; a
+    :class:`~ipm.errors.UserError` names it otherwise."""
+    from ipm.errors import UserError
+
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise UserError(f"cannot create {what} {folder}: {e.strerror}") from None
+    check_writable_folder(folder)
+
+
 def write_text(path: str | os.PathLike, text: str) -> None:
     with atomic_path(path) as tmp:
         tmp.write_text(text)

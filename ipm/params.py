@@ -78,6 +78,33 @@ EXTRA_INTERVALS: dict[str, Interval] = {
 }
 INTERVALS: dict[str, Interval] = {**PAPER_INTERVALS, **EXTRA_INTERVALS}
 
+#: The continuous raw-yarn parameters: one regression net each in the paper's ensemble, the
+#: ones the reports score against the paper and the search may refine.
+RAW_CONTINUOUS: tuple[str, ...] = ("m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply")
+#: The flyaway and fiber-migration parameters, decided together by one net.
+FLYAWAY: tuple[str, ...] = ("j", "j_xy", "j_z", "g", "p", "beta", "l_hair", "s", "l_loop",
+                            "d_mean", "d_std")
+#: The paper's validation MAE of its parameter-specific networks (Table 2), raw units.
+PAPER_VALIDATION_MAE: dict[str, float] = {"r_x": 0.0080, "r_y": 0.0066, "m": 12,
+                                          "alpha": 0.0807, "alpha_ply": 0.0614,
+                                          "R_ply": 0.00444}
+
+
+def to_unit(name: str, value: float) -> float:
+    """A paper parameter's value as a fraction of its interval (0 at ``lo``, 1 at ``hi``): the
+    normalised scale the nets regress."""
+    iv = PAPER_INTERVALS[name]
+    return (value - iv.lo) / iv.width
+
+
+def from_unit(name: str, x: float) -> float | int:
+    """Inverse of :func:`to_unit`: ``x`` clipped to [0, 1], integers rounded."""
+    iv = PAPER_INTERVALS[name]
+    x = min(max(float(x), 0.0), 1.0)
+    val = min(max(iv.lo + x * iv.width, iv.lo), iv.hi)  # lo + 1.0 * width can round past hi
+    return int(round(val)) if iv.integer else val
+
+
 #: The paper's two fiber thickness classes (section "Inference of yarn parameters").
 THICKNESS_CLASSES: dict[str, tuple[float, float]] = {"thin": (0.01, 0.007), "thick": (0.018, 0.01)}
 
@@ -204,8 +231,7 @@ class YarnParams:
     # -- normalised vector (nets, optimiser) -------------------------------------------------
     def to_vector(self) -> np.ndarray:
         """(20,) float64 in [0, 1]: the paper's parameters in :data:`PARAM_ORDER`."""
-        return np.array([(getattr(self, k) - iv.lo) / iv.width
-                         for k, iv in PAPER_INTERVALS.items()])
+        return np.array([to_unit(k, getattr(self, k)) for k in PARAM_ORDER])
 
     @classmethod
     def from_vector(cls, v: np.ndarray, base: YarnParams | None = None) -> YarnParams:
@@ -214,9 +240,6 @@ class YarnParams:
         v = np.asarray(v, dtype=float)
         if v.shape != (len(PARAM_ORDER),):
             raise ParamError(f"expected a vector of {len(PARAM_ORDER)} values, got {v.shape}")
-        vals: dict[str, Any] = {}
-        for x, (k, iv) in zip(np.clip(v, 0, 1), PAPER_INTERVALS.items(), strict=True):
-            val = min(max(iv.lo + x * iv.width, iv.lo), iv.hi)  # rounding at the ends
-            vals[k] = int(round(val)) if iv.integer else float(val)
+        vals: dict[str, Any] = {k: from_unit(k, x) for k, x in zip(PARAM_ORDER, v, strict=True)}
         extra = {} if base is None else {k: getattr(base, k) for k in (*EXTRA_INTERVALS, "color")}
         return cls(**vals, **extra)

@@ -1,4 +1,5 @@
-"""Load a user's yarn photo and bring it to the scene's pixel pitch (Pillow + numpy only).
+"""A photo of a yarn (:class:`Photo`): its image, the size of its pixels at the yarn, the
+capture setup, and for a render its true parameters (Pillow + numpy only).
 
 The nets and the refiner compare photos with renders of the scene, which has a fixed pixel
 size at the yarn (:data:`ipm.frame.PIXEL_SIZE_MM` at full resolution, ``PIXEL_SIZE_MM /
@@ -6,25 +7,26 @@ scale`` at a resolution scale).  A photo of another magnification is resampled s
 of its pixels covers the same millimetres as one pixel of the scene.
 
 Values are **sRGB-encoded** (as stored in the file, like the 8-bit sRGB PNGs of the
-dataset), float32 in [0, 1], shape ``(H, W, 3)``.  Use :func:`srgb_to_linear` for linear
-light.
-
->>> from ipm.photo import load_photo
->>> img = load_photo("yarn.png", pixel_size_mm=0.02, scale=0.25)  # doctest: +SKIP
->>> img.shape, img.dtype  # doctest: +SKIP
-((150, 500, 3), dtype('float32'))
+dataset), float32 in [0, 1], shape ``(H, W, 3)``: the nets and the loss read sRGB, so a photo
+keeps the file's values (a round trip through linear light would change them in the last
+bits); :attr:`Photo.linear` gives linear light, and blurs happen there.
 """
 
 from __future__ import annotations
 
 import os
 import warnings
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
 
 from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
+
+if TYPE_CHECKING:
+    from ipm.params import YarnParams
 
 #: Photos above this many pixels are refused before decoding (a 100 MP camera is the limit).
 MAX_PIXELS = 120_000_000
@@ -84,6 +86,12 @@ def _to_rgb_float(im: Image.Image) -> np.ndarray:
     return np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
 
 
+def pitch_factor(pixel_size_mm: float, scale: float = 1.0) -> float:
+    """How many scene pixels at ``scale`` one photo pixel of ``pixel_size_mm`` covers (> 1:
+    the photo is upsampled to reach the scene's pitch)."""
+    return pixel_size_mm * scale / PIXEL_SIZE_MM
+
+
 def to_scene_pitch(img: np.ndarray, pixel_size_mm: float, scale: float = 1.0) -> np.ndarray:
     """Resample ``(H, W, 3)`` so that one pixel covers ``PIXEL_SIZE_MM / scale`` mm.
 
@@ -96,7 +104,7 @@ def to_scene_pitch(img: np.ndarray, pixel_size_mm: float, scale: float = 1.0) ->
         raise UserError(f"scale must be positive, got {scale}")
     if img.ndim != 3 or img.shape[2] != 3:
         raise ValueError(f"expected an (H, W, 3) image, got shape {img.shape}")
-    factor = pixel_size_mm * scale / PIXEL_SIZE_MM
+    factor = pitch_factor(pixel_size_mm, scale)
     h, w = img.shape[:2]
     size = (max(1, round(w * factor)), max(1, round(h * factor)))
     if size == (w, h):
@@ -107,20 +115,58 @@ def to_scene_pitch(img: np.ndarray, pixel_size_mm: float, scale: float = 1.0) ->
     return np.clip(np.stack(chans, axis=2), 0, 1).astype(np.float32)
 
 
-def load_photo(path: str | os.PathLike, pixel_size_mm: float = PIXEL_SIZE_MM,
-               scale: float = 1.0, min_size: tuple[int, int] | None = None) -> np.ndarray:
-    """:func:`read_image` then :func:`to_scene_pitch`.  ``min_size`` = (H, W) needed after
-    resampling (e.g. the nets' input crop); a smaller photo raises a :class:`UserError`
-    that says how many photo pixels are needed at this pixel size."""
-    img = to_scene_pitch(read_image(path), pixel_size_mm, scale)
-    if min_size is not None and (img.shape[0] < min_size[0] or img.shape[1] < min_size[1]):
-        factor = pixel_size_mm * scale / PIXEL_SIZE_MM
-        need_w, need_h = (int(np.ceil(v / factor)) for v in (min_size[1], min_size[0]))
-        raise UserError(f"{os.fspath(path)} is too small: at {pixel_size_mm:g} mm per pixel "
-                        f"the nets need a photo of at least {need_w}x{need_h} px "
-                        f"({min_size[1] * PIXEL_SIZE_MM / scale:g} x "
-                        f"{min_size[0] * PIXEL_SIZE_MM / scale:g} mm of yarn)")
-    return img
+@dataclass(frozen=True)
+class Photo:
+    """A yarn photo: ``image`` (H, W, 3) float32 sRGB in [0, 1], ``pixel_size_mm`` (one
+    pixel at the yarn), ``setup`` (``frontlit``: the scene's lighting), ``truth`` (the
+    parameters of a render) and ``name`` (its file, for messages)."""
+
+    image: np.ndarray
+    pixel_size_mm: float = PIXEL_SIZE_MM
+    setup: str = "frontlit"
+    truth: YarnParams | None = None
+    name: str = "the photo"
+
+    @classmethod
+    def read(cls, path: str | os.PathLike, pixel_size_mm: float = PIXEL_SIZE_MM,
+             setup: str = "frontlit", truth: YarnParams | None = None) -> Photo:
+        """Decode ``path`` (:func:`read_image`)."""
+        return cls(read_image(path), pixel_size_mm, setup, truth, os.fspath(path))
+
+    @property
+    def linear(self) -> np.ndarray:
+        """The image in linear light."""
+        return srgb_to_linear(self.image)
+
+    def at_pitch(self, scale: float = 1.0, min_size: tuple[int, int] | None = None
+                 ) -> np.ndarray:
+        """The image resampled to the scene's pixel pitch at ``scale``
+        (:func:`to_scene_pitch`).  ``min_size`` = (H, W) needed after resampling (e.g. the
+        nets' input crop); a smaller photo raises a :class:`UserError` that says how many
+        photo pixels are needed at this pixel size."""
+        img = to_scene_pitch(self.image, self.pixel_size_mm, scale)
+        if min_size is not None and (img.shape[0] < min_size[0] or img.shape[1] < min_size[1]):
+            factor = pitch_factor(self.pixel_size_mm, scale)
+            need_w, need_h = (int(np.ceil(v / factor)) for v in (min_size[1], min_size[0]))
+            h, w = self.image.shape[:2]
+            raise UserError(f"{self.name} ({w}x{h} px) is too small: at "
+                            f"{self.pixel_size_mm:g} mm per pixel the nets need a photo of at "
+                            f"least {need_w}x{need_h} px ({min_size[1] * PIXEL_SIZE_MM / scale:g}"
+                            f" x {min_size[0] * PIXEL_SIZE_MM / scale:g} mm of yarn)")
+        return img
+
+    def inverted(self) -> Photo:
+        """The negative: a backlit capture (dark yarn on a light background) made to look
+        like the scene's light yarn on a dark card."""
+        return replace(self, image=1 - self.image)
+
+    def defocused(self, sigma_mm: float) -> Photo:
+        """Blurred in linear light by a Gaussian of ``sigma_mm`` at the yarn
+        (:func:`defocus`)."""
+        if sigma_mm <= 0:
+            return self
+        return replace(self, image=linear_to_srgb(defocus(self.linear,
+                                                          sigma_mm / self.pixel_size_mm)))
 
 
 def srgb_to_linear(x: np.ndarray) -> np.ndarray:

@@ -6,9 +6,9 @@ L_latent (:mod:`~ipm.nets.losses`).  One net per :class:`~ipm.nets.tasks.Task`; 
 :mod:`~ipm.nets.config`; training in :mod:`~ipm.nets.train`; inference::
 
     from ipm.nets.ensemble import Ensemble
-    from ipm.photo import read_image
+    from ipm.photo import Photo
 
-    params = Ensemble.load(models_dir).predict(read_image("yarn.png"), pixel_size_mm=0.01)
+    params = Ensemble.load(models_dir).predict(Photo.read("yarn.png", pixel_size_mm=0.01))
 
 This package imports torch only in its submodules, so ``import ipm`` stays light.
 """

@@ -77,8 +77,11 @@ def train(
 
 
 def predict(
-    photo: Annotated[Path, typer.Argument(help="photo of a yarn running horizontally")],
-    out: Annotated[Path | None, typer.Option("-o", "--out", help="JSON file to write")] = None,
+    photos: Annotated[list[Path], typer.Argument(help="photos of yarns running horizontally, "
+                                                 "or folders of them")],
+    out: Annotated[Path | None, typer.Option("-o", "--out", help="JSON file to write; for "
+                                             "several photos a folder (created), one "
+                                             "<photo name>.json each")] = None,
     pixel_size: Annotated[float, typer.Option(help=_PIXEL_HELP)] = PIXEL_SIZE_MM,
     models: Annotated[Path | None, typer.Option(help=_MODELS_HELP)] = None,
     crops: Annotated[int, typer.Option(help="crops along the yarn to average")] = 3,
@@ -86,24 +89,44 @@ def predict(
                                          "dark yarn on a light background)")] = False,
     device: Annotated[str, typer.Option(help="cpu | cuda")] = "cpu",
 ) -> None:
-    """Infer the yarn parameters from a photo with the neural ensemble; prints and writes
-    them as flat JSON (the form `ipm curves` reads)."""
-    from ipm.cli import check_output
-    from ipm.io import write_text
+    """Infer the yarn parameters from photos with the neural ensemble, in one process.  One
+    photo: prints the parameters and writes them to --out as flat JSON (the form `ipm
+    curves` reads); several photos or a folder: one JSON per photo in the folder --out."""
+    from ipm.dataset import photo_files
+    from ipm.io import check_not_inputs, check_output, prepare_folder, write_text
     from ipm.nets.config import PredictConfig
-    from ipm.photo import read_image
+    from ipm.photo import Photo
 
-    cfg = PredictConfig(photo, models, pixel_size, crops, invert, device)
-    if out is not None:
-        check_output(out)
-    image = read_image(cfg.photo)
+    files = [f for p in photos for f in (photo_files(p) if p.is_dir() else [p])]
+    if not files:
+        raise UserError(f"{', '.join(map(str, photos))} holds no photos")
+    cfg = PredictConfig(tuple(files), models, pixel_size, crops, invert, device)
+    single = len(photos) == 1 and not photos[0].is_dir()
+    if single:
+        targets = [out]
+        if out is not None:
+            check_output(out)
+    else:
+        if out is None:
+            raise UserError("several photos: give --out FOLDER for their JSON files")
+        targets = [out / f"{f.stem}.json" for f in files]
+        if len(set(targets)) < len(targets):
+            raise UserError("two photos share a name; their JSON files would collide")
+    check_not_inputs([t for t in targets if t is not None], files)
+    if not single:
+        prepare_folder(out)
     ensemble = _load(cfg.models, cfg.device)
     if w := ensemble.upsampling_warning(cfg.pixel_size):
         typer.echo(f"warning: {w}", err=True)
-    params = ensemble.predict(1 - image if cfg.invert else image, cfg.pixel_size, cfg.crops)
-    typer.echo(params.to_json())
-    if out is not None:
-        write_text(out, params.to_json() + "\n")
+    for file, target in zip(cfg.photos, targets, strict=True):
+        shot = Photo.read(file, cfg.pixel_size)
+        params = ensemble.predict(shot.inverted() if cfg.invert else shot, cfg.crops)
+        if single:
+            typer.echo(params.to_json())
+        else:
+            typer.echo(f"{file} -> {target}", err=True)
+        if target is not None:
+            write_text(target, params.to_json() + "\n")
 
 
 def saliency(
@@ -120,25 +143,23 @@ def saliency(
     import numpy as np
     from PIL import Image
 
-    from ipm.cli import check_output
-    from ipm.io import atomic_path
+    from ipm.io import atomic_path, check_not_inputs, check_output
     from ipm.nets.config import SaliencyConfig
     from ipm.nets.data import to_input
     from ipm.nets.saliency import net_for, to_image
     from ipm.nets.saliency import saliency as saliency_map
-    from ipm.photo import read_image, to_scene_pitch
+    from ipm.photo import Photo
 
     cfg = SaliencyConfig(photo, param, models, pixel_size, invert)
     check_output(out)
-    image = read_image(cfg.photo)
+    check_not_inputs([out], [photo])
+    shot = Photo.read(cfg.photo, cfg.pixel_size)
     net, columns = net_for(_load(cfg.models, "cpu"), cfg.param, cfg.pixel_size)
-    scaled = to_scene_pitch(1 - image if cfg.invert else image, cfg.pixel_size,
-                            net.config.input_scale)
-    if min(scaled.shape[:2]) < 32:
-        raise UserError(f"{photo} is too small for the nets at this pixel size")
+    scaled = (shot.inverted() if cfg.invert else shot).at_pitch(net.config.input_scale,
+                                                                (32, 32))
     s = saliency_map(net, to_input(scaled)[None], columns)[0].numpy()
     full = np.asarray(Image.fromarray(s.astype(np.float32), mode="F").resize(
-        (image.shape[1], image.shape[0]), Image.Resampling.BILINEAR))
+        (shot.image.shape[1], shot.image.shape[0]), Image.Resampling.BILINEAR))
     with atomic_path(out) as tmp:
         Image.fromarray(to_image(full), mode="L").save(tmp, format="PNG")
     typer.echo(f"saliency of {param} -> {out}", err=True)

@@ -137,9 +137,10 @@ class TrainConfig:
 
 @dataclass(frozen=True)
 class PredictConfig:
-    """``ipm predict``: the photo, its pixel size at the yarn, the models, crops to average."""
+    """``ipm predict``: the photos, their pixel size at the yarn, the models, crops to
+    average."""
 
-    photo: Path
+    photos: tuple[Path, ...]
     models: Path | None = None
     pixel_size: float = PIXEL_SIZE_MM
     crops: int = 3

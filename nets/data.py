@@ -1,9 +1,8 @@
 """Datasets for the nets: labelled synthetic frames (``ipm generate``) and unlabelled real
 photos, as random crops at the nets' input scale.
 
-A dataset folder holds ``manifest.jsonl``: one JSON object per line with ``image`` (path
-relative to the folder, an 8-bit sRGB PNG of the 2000 x 600 frame at ``scale``), ``params``
-(flat :class:`~ipm.params.YarnParams`) and ``pixel_size_mm``.  Frames are brought to the
+A dataset folder is read through :mod:`ipm.dataset` (its manifest names 8-bit sRGB PNGs of
+the 2000 x 600 frame at ``scale``, their labels and pixel sizes).  Frames are brought to the
 nets' pixel pitch once (kept in memory as uint8 when they fit, else re-read per access), and
 each epoch draws a new random crop and exposure per image from a generator seeded by (seed,
 epoch, index), so runs are reproducible and resumable and do not depend on the worker count.
@@ -11,22 +10,17 @@ epoch, index), so runs are reproducible and resumable and do not depend on the w
 
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from ipm.dataset import PHOTO_SUFFIXES, Record, photo_files, read_manifest
 from ipm.errors import UserError
-from ipm.frame import PIXEL_SIZE_MM
 from ipm.nets.tasks import Task
-from ipm.params import YarnParams
-from ipm.photo import defocus, linear_to_srgb, load_photo, srgb_to_linear
+from ipm.photo import defocus, linear_to_srgb, srgb_to_linear
 
-MANIFEST = "manifest.jsonl"
-PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
 #: Frames are cached in memory as uint8 up to this many bytes per dataset.
 CACHE_BYTES = 6 * 2**30
 
@@ -49,77 +43,42 @@ def to_input(img: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float() * 2 - 1
 
 
-@dataclass(frozen=True)
-class Record:
-    """One labelled sample; ``seed`` is its fiber seed (None where a manifest has none)."""
-
-    image: Path
-    params: YarnParams
-    pixel_size_mm: float
-    seed: int | None = None
-
-
-def read_manifest(folder: Path) -> list[Record]:
-    """The records of a dataset folder; a bad folder or line is a one-line UserError."""
-    path = Path(folder) / MANIFEST
-    if not path.is_file():
-        raise UserError(f"{folder} is not a dataset: {MANIFEST} not found "
-                        "(make one with `ipm generate`)")
-    records = []
-    for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
-        if not line.strip():
-            continue
-        try:
-            d = json.loads(line)
-            seed = d.get("seed")
-            records.append(Record(Path(folder) / d["image"], YarnParams.from_dict(d["params"]),
-                                  float(d.get("pixel_size_mm", PIXEL_SIZE_MM)),
-                                  None if seed is None else int(seed)))
-        except (json.JSONDecodeError, KeyError, TypeError, ValueError) as e:
-            raise UserError(f"{path}:{i}: bad record ({e})") from None
-    if not records:
-        raise UserError(f"{path} lists no images")
-    return records
-
-
 class Frames:
     """Images at one pixel pitch, as uint8 ``(H, W, 3)``; ``labels`` when synthetic."""
 
-    def __init__(self, files: list[Path], pixel_sizes: list[float], scale: float,
-                 min_size: tuple[int, int], labels: list[YarnParams] | None = None,
+    def __init__(self, records: list[Record], scale: float, min_size: tuple[int, int],
                  invert: bool = False, max_height: int | None = None) -> None:
-        self.files, self.pixel_sizes, self.labels = files, pixel_sizes, labels
+        self.records = records
+        self.labels = (None if any(r.params is None for r in records)
+                       else [r.params for r in records])
         self.scale, self.min_size = scale, min_size
         self.invert, self.max_height = invert, max_height
         first = self._load(0)
         self._cache: list[np.ndarray | None] | None = None
-        if first.nbytes * len(files) <= CACHE_BYTES:
-            self._cache = [first] + [None] * (len(files) - 1)
+        if first.nbytes * len(records) <= CACHE_BYTES:
+            self._cache = [first] + [None] * (len(records) - 1)
 
     @classmethod
     def synthetic(cls, folder: Path, scale: float, min_size: tuple[int, int]) -> Frames:
-        recs = read_manifest(folder)
-        return cls([r.image for r in recs], [r.pixel_size_mm for r in recs], scale, min_size,
-                   labels=[r.params for r in recs])
+        return cls(read_manifest(folder), scale, min_size)
 
     @classmethod
     def real(cls, folder: Path, scale: float, min_size: tuple[int, int], pixel_size_mm: float,
              invert: bool, frame_height: int) -> Frames:
         """Unlabelled photos of ``folder``, cut to the frame's height around the centre row
         (the yarn runs through the centre, as in the synthetic frames)."""
-        files = sorted(p for p in Path(folder).iterdir() if p.suffix.lower() in PHOTO_SUFFIXES)
+        files = photo_files(folder)
         if not files:
             raise UserError(f"{folder} holds no photos ({', '.join(PHOTO_SUFFIXES)})")
-        return cls(files, [pixel_size_mm] * len(files), scale, min_size, invert=invert,
+        return cls([Record(f, pixel_size_mm) for f in files], scale, min_size, invert=invert,
                    max_height=frame_height)
 
     def __len__(self) -> int:
-        return len(self.files)
+        return len(self.records)
 
     def _load(self, i: int) -> np.ndarray:
-        img = load_photo(self.files[i], self.pixel_sizes[i], self.scale, self.min_size)
-        if self.invert:
-            img = 1 - img
+        photo = self.records[i].photo()
+        img = (photo.inverted() if self.invert else photo).at_pitch(self.scale, self.min_size)
         if self.max_height and img.shape[0] > self.max_height:
             top = (img.shape[0] - self.max_height) // 2
             img = img[top:top + self.max_height]

@@ -1,9 +1,11 @@
 """The encoder f: image ``(B, 3, H, W)`` -> latent code ``(B, C, ceil(H/32), ceil(W/32))``.
 
 As in the paper the latent code is the output of the convolution stack of a ResNet18/34
-(torchvision's blocks) without its average pooling and fully connected layer: the pooling
-moves into the head h.  ``convnext`` keeps ResNet18's stage layout (2, 2, 2, 2 blocks,
-32x downsampling) with ConvNeXt blocks, which use layer norm instead of batch norm.
+(torchvision's blocks, written out here so that loading a ResNet net does not import
+torchvision, which takes longer than the nets' prediction) without its average pooling and
+fully connected layer: the pooling moves into the head h.  ``convnext`` keeps ResNet18's
+stage layout (2, 2, 2, 2 blocks, 32x downsampling) with ConvNeXt blocks, which use layer
+norm instead of batch norm.
 
 ``width`` scales the channels of every stage (64, 128, 256, 512 at width 1, the paper's
 networks; C = 512 * width).  Narrower encoders are what makes training on a laptop CPU and
@@ -15,8 +17,6 @@ from __future__ import annotations
 
 import torch
 from torch import nn
-from torchvision.models.convnext import CNBlock, LayerNorm2d
-from torchvision.models.resnet import BasicBlock
 
 ENCODERS = {"resnet18": (2, 2, 2, 2), "resnet34": (3, 4, 6, 3), "convnext": (2, 2, 2, 2)}
 BASE_WIDTHS = (64, 128, 256, 512)
@@ -32,6 +32,28 @@ def stage_widths(width: float) -> tuple[int, ...]:
     if not 0 < width <= 4:
         raise ValueError(f"width multiplier must be in (0, 4], got {width}")
     return tuple(max(8, round(c * width)) for c in BASE_WIDTHS)
+
+
+class BasicBlock(nn.Module):
+    """torchvision's ResNet BasicBlock: the same layers, names (so the same weights load)
+    and arithmetic."""
+
+    def __init__(self, c_in: int, c: int, stride: int = 1,
+                 downsample: nn.Module | None = None) -> None:
+        super().__init__()
+        self.conv1 = nn.Conv2d(c_in, c, 3, stride=stride, padding=1, bias=False)
+        self.bn1 = nn.BatchNorm2d(c)
+        self.relu = nn.ReLU(inplace=True)
+        self.conv2 = nn.Conv2d(c, c, 3, stride=1, padding=1, bias=False)
+        self.bn2 = nn.BatchNorm2d(c)
+        self.downsample = downsample
+        self.stride = stride
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        identity = x if self.downsample is None else self.downsample(x)
+        out = self.bn2(self.conv2(self.relu(self.bn1(self.conv1(x)))))
+        out += identity
+        return self.relu(out)
 
 
 def _resnet(depths: tuple[int, ...], widths: tuple[int, ...]) -> nn.Sequential:
@@ -57,6 +79,8 @@ def _resnet(depths: tuple[int, ...], widths: tuple[int, ...]) -> nn.Sequential:
 
 
 def _convnext(depths: tuple[int, ...], widths: tuple[int, ...]) -> nn.Sequential:
+    from torchvision.models.convnext import CNBlock, LayerNorm2d
+
     layers: list[nn.Module] = [nn.Conv2d(3, widths[0], kernel_size=4, stride=4),
                                LayerNorm2d(widths[0], eps=1e-6)]
     for i, (depth, c) in enumerate(zip(depths, widths, strict=True)):

@@ -1,9 +1,5 @@
-"""Inference: an ensemble of trained nets -> :class:`~ipm.params.YarnParams` from a photo.
-
->>> from ipm.nets.ensemble import Ensemble
->>> from ipm.photo import read_image
->>> ens = Ensemble.load()                       # the models shipped with ipm  # doctest: +SKIP
->>> params = ens.predict(read_image("yarn.png"), pixel_size_mm=0.01)        # doctest: +SKIP
+"""Inference: an ensemble of trained nets -> :class:`~ipm.params.YarnParams` from a
+:class:`~ipm.photo.Photo` (``Ensemble.load().predict(Photo.read("yarn.png", 0.01))``).
 
 Each net sees the photo at its own pixel pitch (``PIXEL_SIZE_MM / input_scale``); its
 outputs are averaged over a few crops evenly spaced along the yarn (class probabilities for
@@ -25,7 +21,7 @@ from ipm.nets.data import centre_crops
 from ipm.nets.model import YarnNet
 from ipm.nets.store import load_net, read_json
 from ipm.params import PARAM_ORDER, YarnParams
-from ipm.photo import to_scene_pitch
+from ipm.photo import Photo, pitch_factor
 
 ENSEMBLE = "ensemble.json"
 #: Default models, shipped inside the package.
@@ -78,7 +74,7 @@ class Ensemble:
             groups.setdefault(net.config.spec.decides, []).append(name)
 
         def upsampling(name: str) -> float:
-            return pixel_size_mm * self.nets[name].config.input_scale / PIXEL_SIZE_MM
+            return pitch_factor(pixel_size_mm, self.nets[name].config.input_scale)
 
         keep = set()
         for names in groups.values():
@@ -111,8 +107,7 @@ class Ensemble:
         photo, off their training data, and their parameters are less reliable."""
         nets = self.chosen(pixel_size_mm)
         coarse = sorted(name for name, net in nets.items()
-                        if pixel_size_mm * net.config.input_scale / PIXEL_SIZE_MM
-                        > MAX_UPSAMPLING)
+                        if pitch_factor(pixel_size_mm, net.config.input_scale) > MAX_UPSAMPLING)
         if not coarse:
             return None
         finest = min(PIXEL_SIZE_MM / nets[n].config.input_scale for n in coarse)
@@ -121,36 +116,26 @@ class Ensemble:
                 f"({finest:g} mm): upsampled, so these parameters are less reliable")
 
     @torch.no_grad()
-    def outputs(self, image: np.ndarray, pixel_size_mm: float = PIXEL_SIZE_MM,
-                crops: int = 3) -> dict[str, np.ndarray]:
-        """Each net's output ``(K,)`` for an ``(H, W, 3)`` sRGB image in [0, 1] whose pixels
-        are ``pixel_size_mm`` wide at the yarn, averaged over ``crops`` crops."""
-        if image.ndim != 3 or image.shape[2] != 3:
-            raise ValueError(f"expected an (H, W, 3) image, got shape {image.shape}")
+    def outputs(self, photo: Photo, crops: int = 3) -> dict[str, np.ndarray]:
+        """Each net's output ``(K,)`` for ``photo``, averaged over ``crops`` crops."""
+        if photo.image.ndim != 3 or photo.image.shape[2] != 3:
+            raise ValueError(f"expected an (H, W, 3) image, got shape {photo.image.shape}")
         scaled: dict[float, np.ndarray] = {}
         result = {}
-        for name, net in self.chosen(pixel_size_mm).items():
+        for name, net in self.chosen(photo.pixel_size_mm).items():
             s = net.config.input_scale
             if s not in scaled:
-                scaled[s] = to_scene_pitch(image, pixel_size_mm, s)
-            (ch, cw), (h, w) = net.config.crop, scaled[s].shape[:2]
-            if h < ch or w < cw:
-                f = pixel_size_mm * s / PIXEL_SIZE_MM
-                raise UserError(
-                    f"the photo ({image.shape[1]}x{image.shape[0]} px) is too small: at "
-                    f"{pixel_size_mm:g} mm per pixel the nets need at least "
-                    f"{int(np.ceil(cw / f))}x{int(np.ceil(ch / f))} px "
-                    f"({cw * PIXEL_SIZE_MM / s:g} x {ch * PIXEL_SIZE_MM / s:g} mm of yarn)")
+                scaled[s] = photo.at_pitch(s, net.config.crop)
             x = centre_crops(scaled[s], net.config.crop, crops)
             device = next(net.parameters()).device
             result[name] = net.predict(x.to(device)).mean(0).cpu().numpy()
         return result
 
-    def predict(self, image: np.ndarray, pixel_size_mm: float = PIXEL_SIZE_MM,
-                crops: int = 3, base: YarnParams | None = None) -> YarnParams:
-        """The inferred parameters; fields no net decides come from ``base``."""
+    def predict(self, photo: Photo, crops: int = 3, base: YarnParams | None = None
+                ) -> YarnParams:
+        """The inferred parameters of ``photo``; fields no net decides come from ``base``."""
         values: dict = {}
-        for name, out in self.outputs(image, pixel_size_mm, crops).items():
+        for name, out in self.outputs(photo, crops).items():
             values.update(self.nets[name].config.spec.decode(out))
         extra = {} if base is None else {k: v for k, v in base.to_dict().items()
                                          if k not in PARAM_ORDER}

@@ -86,6 +86,9 @@ def load_net(folder: Path, device: str | torch.device = "cpu") -> tuple[YarnNet,
     except RuntimeError as e:
         raise UserError(f"{folder / WEIGHTS} does not match {folder / CONFIG} "
                         f"({str(e).splitlines()[0]})") from None
+    if not all(bool(torch.isfinite(t).all()) for t in tensors.values() if t.is_floating_point()):
+        raise UserError(f"{folder / WEIGHTS} holds non-finite weights (NaN or inf): a diverged "
+                        "training run; retrain it or restore the file")
     return net.to(device).eval(), meta
 
 

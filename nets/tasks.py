@@ -12,10 +12,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ipm.params import PAPER_INTERVALS, PARAM_ORDER, THICKNESS_CLASSES, YarnParams
+from ipm.params import (
+    FLYAWAY,
+    PAPER_INTERVALS,
+    PARAM_ORDER,
+    RAW_CONTINUOUS,
+    THICKNESS_CLASSES,
+    YarnParams,
+    from_unit,
+)
 
-FLYAWAY_PARAMS = ("j", "j_xy", "j_z", "g", "p", "beta", "l_hair", "s", "l_loop", "d_mean",
-                  "d_std")
 RAW_PARAMS = ("n", "m", "t_x", "t_y", "alpha", "r_x", "r_y", "alpha_ply", "R_ply")
 PLY_COUNTS = (2, 3, 4, 5, 6)
 THICKNESSES = tuple(THICKNESS_CLASSES)
@@ -58,13 +64,7 @@ class Task:
             if self.name == "thickness":
                 return dict(zip(("t_x", "t_y"), THICKNESS_CLASSES[cls], strict=True))
             return {self.params[0]: cls}
-        vals: dict[str, float | int] = {}
-        for k, x in zip(self.params, np.clip(out, 0, 1), strict=True):
-            iv = PAPER_INTERVALS[k]
-            # min/max: lo + 1.0 * (hi - lo) can round past hi (alpha: -0.4759999...).
-            val = min(max(iv.lo + float(x) * iv.width, iv.lo), iv.hi)
-            vals[k] = int(round(val)) if iv.integer else val
-        return vals
+        return {k: from_unit(k, x) for k, x in zip(self.params, out, strict=True)}
 
 
 def regression(*params: str, name: str | None = None) -> Task:
@@ -76,13 +76,11 @@ def regression(*params: str, name: str | None = None) -> Task:
 
 PLY_COUNT = Task("n", ("n",), PLY_COUNTS)
 THICKNESS = Task("thickness", ("thickness",), THICKNESSES)
-FLYAWAYS = regression(*FLYAWAY_PARAMS, name="flyaways")
+FLYAWAYS = regression(*FLYAWAY, name="flyaways")
 RAW = regression(*RAW_PARAMS, name="raw")
 
 #: The paper's best: one net per raw-yarn parameter plus the flyaway net.
-ENSEMBLE_TASKS = (PLY_COUNT, THICKNESS, *(regression(k) for k in
-                                          ("m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply")),
-                  FLYAWAYS)
+ENSEMBLE_TASKS = (PLY_COUNT, THICKNESS, *(regression(k) for k in RAW_CONTINUOUS), FLYAWAYS)
 #: The paper's alternatives: one net for all raw-yarn parameters plus the flyaway net.
 REG_TASKS = (RAW, FLYAWAYS)
 TASKS = {t.name: t for t in (*ENSEMBLE_TASKS, *REG_TASKS)}

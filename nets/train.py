@@ -44,7 +44,7 @@ from ipm.nets.store import (
     save_net,
 )
 from ipm.nets.tasks import TASKS, Task
-from ipm.params import PAPER_INTERVALS
+from ipm.params import PAPER_INTERVALS, from_unit
 
 ENSEMBLE = "ensemble.json"
 #: Options that may change when a run is resumed; any other change needs a new --out.
@@ -98,11 +98,9 @@ def predict_all(net: YarnNet, crops: Crops, batch_size: int, device: str) -> np.
 
 def raw_values(task: Task, normalised: np.ndarray) -> np.ndarray:
     """``(N, K)`` normalised -> raw units (clipped to the intervals, integers rounded)."""
-    lo = np.array([PAPER_INTERVALS[k].lo for k in task.params])
-    hi = np.array([PAPER_INTERVALS[k].hi for k in task.params])
-    raw = lo + np.clip(normalised, 0, 1) * (hi - lo)
-    ints = np.array([PAPER_INTERVALS[k].integer for k in task.params])
-    return np.where(ints, np.round(raw), raw)
+    return np.array([[from_unit(k, x) for k, x in zip(task.params, row, strict=True)]
+                     for row in np.asarray(normalised).reshape(-1, len(task.params))],
+                    dtype=np.float64).reshape(np.shape(normalised))
 
 
 def errors(task: Task, outputs: np.ndarray, targets: np.ndarray) -> dict:

@@ -9,9 +9,8 @@ from typing import Annotated
 
 import typer
 
-from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
-from ipm.io import check_same_settings, check_writable_folder
+from ipm.io import check_not_inputs, check_same_settings, prepare_folder
 from ipm.progress import progress_bar
 from ipm.refine.search import SearchOptions
 
@@ -26,14 +25,6 @@ def _search_params(text: str) -> tuple[str, ...]:
     return tuple(p.strip() for p in text.split(",") if p.strip())
 
 
-def _prepare_folder(folder: Path) -> None:
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise UserError(f"cannot create output folder {folder}: {e.strerror}") from None
-    check_writable_folder(folder)
-
-
 def fit(
     photo: Annotated[Path, typer.Argument(help="photo of a yarn running horizontally (PNG, "
                                           "JPEG or TIFF; 8 or 16 bit)")],
@@ -41,8 +32,8 @@ def fit(
                                       "renders and compare.png")] = Path("fit"),
     refine: Annotated[bool, typer.Option("--refine/--no-refine", help="refine the nets' "
                                          "guess by render-and-compare: searches the ply "
-                                         "twist alpha_ply (on held-out renders its error "
-                                         "fell by 34%; docs/compare)")] = False,
+                                         "twist alpha_ply (measured in docs/compare)")]
+    = False,
     pixel_size: Annotated[float, typer.Option(help="mm per photo pixel at the yarn (the "
                                               "scene's is 0.01)")] = PIXEL_SIZE_MM,
     models: Annotated[Path | None, typer.Option(help="trained ensemble folder (default: the "
@@ -65,25 +56,27 @@ def fit(
     losses, the settings), neural.png, refined.png and compare.png (photo | neural |
     refined)."""
     from ipm.io import write_text
-    from ipm.photo import read_image, write_png
+    from ipm.photo import Photo, write_png
     from ipm.refine.fit import FitOptions, compare_image, display_renders, fit
     from ipm.render.renderer import Renderer
 
     options = FitOptions(search=SearchOptions(params=_search_params(params),
                                               algorithm=algorithm, budget=budget,
                                               time_s=time_limit))
-    image = read_image(photo)
+    check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
+                                         "params.json")], [photo])
+    shot = Photo.read(photo, pixel_size)
     if invert:
-        image = 1 - image
-    _prepare_folder(out)
+        shot = shot.inverted()
+    prepare_folder(out)
     from ipm.nets.ensemble import Ensemble
 
     ensemble = Ensemble.load(models)
-    neural = ensemble.predict(image, pixel_size)
+    neural = ensemble.predict(shot)
     renderer = Renderer(variant)
     with progress_bar("renders, best loss {task.fields[best]}", transient=True) as bar:
         task = bar.add_task("refining" if refine else "scoring", total=budget, best="-")
-        result = fit(image, pixel_size, neural, renderer, options, refine,
+        result = fit(shot, neural, renderer, options, refine,
                      on_eval=lambda i, loss, best: bar.update(task, completed=i,
                                                              best=f"{best:.4f}"),
                      sigma=ensemble.sigma(pixel_size) if prior else None)
@@ -91,8 +84,7 @@ def fit(
         result.warnings.insert(0, w)
     for w in result.warnings:
         typer.echo(f"warning: {w}", err=True)
-    shown, neural_img, refined_img = display_renders(renderer, image, pixel_size, result,
-                                                     options)
+    shown, neural_img, refined_img = display_renders(renderer, shot, result, options)
     write_png(out / "neural.png", neural_img)
     panels, labels = [shown, neural_img], ["photo", f"neural  loss {result.loss_neural:.4f}"]
     if refine:
@@ -147,7 +139,7 @@ def compare(
                                               algorithm=algorithm, budget=budget))
     listed = cmp.photos_in(photos, pixel_size, count)
     ensemble = Ensemble.load(models)
-    _prepare_folder(out)
+    prepare_folder(out)
     settings = {"photos": str(photos), "count": len(listed), "pixel_size_mm": pixel_size,
                 "models": str(models) if models else "shipped", "budget": budget,
                 "algorithm": algorithm, "params": list(options.search.params), "prior": prior,

@@ -20,13 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
+from ipm.dataset import MANIFEST, PHOTO_SUFFIXES, Record, photo_files, read_manifest
 from ipm.errors import UserError
 from ipm.io import write_text
-from ipm.params import PAPER_INTERVALS, YarnParams
+from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
+from ipm.photo import Photo
 
 #: The continuous raw-yarn parameters the reports compare, neural vs refined (the search
 #: refines those of :class:`ipm.refine.search.SearchOptions`; the others keep the nets').
-REFINED = ("alpha", "alpha_ply", "R_ply", "r_x", "r_y")
+REFINED = tuple(k for k in RAW_CONTINUOUS if k != "m")
 FITS = "fits.jsonl"
 
 
@@ -43,64 +45,47 @@ class PhotoPrep:
         if not 0 <= self.blur_mm <= 1:
             raise UserError(f"blur must be in [0, 1] mm, got {self.blur_mm}")
 
-    def load(self, photo: Photo) -> np.ndarray:
-        from ipm.photo import defocus, linear_to_srgb, read_image, srgb_to_linear
-
-        image = read_image(photo.image)
-        if self.blur_mm:
-            image = linear_to_srgb(defocus(srgb_to_linear(image),
-                                           self.blur_mm / photo.pixel_size_mm))
-        return 1 - image if self.invert else image
+    def load(self, record: Record) -> Photo:
+        photo = record.photo().defocused(self.blur_mm)
+        return photo.inverted() if self.invert else photo
 
 
-@dataclass(frozen=True)
-class Photo:
-    """One photo to fit; ``truth`` when it comes from a labelled dataset."""
-
-    image: Path
-    pixel_size_mm: float
-    truth: YarnParams | None = None
-
-
-def photos_in(folder: Path, pixel_size_mm: float, count: int | None = None) -> list[Photo]:
+def photos_in(folder: Path, pixel_size_mm: float, count: int | None = None) -> list[Record]:
     """The photos of ``folder`` sorted by name: a dataset's (with labels and pixel sizes) if
-    it holds a ``manifest.jsonl``, else every image file (at ``pixel_size_mm``)."""
-    from ipm.nets.data import PHOTO_SUFFIXES, read_manifest
-
+    it holds a manifest, else every image file (at ``pixel_size_mm``)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise UserError(f"{folder} is not a folder of photos")
-    if (folder / "manifest.jsonl").is_file():
-        photos = [Photo(r.image, r.pixel_size_mm, r.params) for r in read_manifest(folder)]
+    if (folder / MANIFEST).is_file():
+        photos = read_manifest(folder)
     else:
-        photos = [Photo(p, pixel_size_mm) for p in folder.iterdir()
-                  if p.suffix.lower() in PHOTO_SUFFIXES]
+        photos = [Record(p, pixel_size_mm) for p in photo_files(folder)]
     if not photos:
         raise UserError(f"{folder} holds no photos ({', '.join(PHOTO_SUFFIXES)})")
     photos.sort(key=lambda p: str(p.image))
     return photos[:count] if count else photos
 
 
-def fit_row(photo: Photo, image: np.ndarray, neural: YarnParams, renderer, options,
+def fit_row(record: Record, photo: Photo, neural: YarnParams, renderer, options,
             sigma: dict[str, float] | None) -> dict:
     """``ipm fit --refine`` on one photo, as one JSON-ready row."""
     from ipm.refine.fit import fit
 
-    res = fit(image, photo.pixel_size_mm, neural, renderer, options, sigma=sigma)
-    return {"image": str(photo.image), "neural": res.neural.to_dict(),
+    res = fit(photo, neural, renderer, options, sigma=sigma)
+    return {"image": str(record.image), "neural": res.neural.to_dict(),
             "refined": res.refined.to_dict(), "loss_neural": res.loss_neural,
             "loss_refined": res.loss_refined, "improved": bool(res.improved),
             "tilt_deg": res.tilt_deg, "warnings": res.warnings,
             "trace": res.search.trace if res.search else [], "seconds": res.seconds}
 
 
-def fit_all(path: Path, photos: Sequence[Photo], neural_of: Callable[[int, np.ndarray],
+def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Photo],
             YarnParams], options, sigma: dict[str, float] | None,
             prep: PhotoPrep = PhotoPrep(),
             progress: Callable[[int, int], None] | None = None) -> list[dict]:
     """Fit every photo, resuming from the rows already in the JSON-lines file ``path``.
 
-    ``neural_of(i, image)`` gives the nets' parameters of photo ``i``.  A row is appended
+    ``neural_of(i, photo)`` gives the nets' parameters of photo ``i``.  A row is appended
     (and flushed) as each fit ends; a line torn by a kill, and any row that does not belong
     to the photo at its place, is dropped and that photo fitted again."""
     from ipm.render.renderer import Renderer
@@ -120,9 +105,9 @@ def fit_all(path: Path, photos: Sequence[Photo], neural_of: Callable[[int, np.nd
     renderer = None
     with open(path, "a", encoding="utf-8") as f:
         for i in range(len(done), len(photos)):
-            image = prep.load(photos[i])
+            photo = prep.load(photos[i])
             renderer = renderer or Renderer()
-            row = fit_row(photos[i], image, neural_of(i, image), renderer, options, sigma)
+            row = fit_row(photos[i], photo, neural_of(i, photo), renderer, options, sigma)
             f.write(json.dumps(row) + "\n")
             f.flush()
             done.append(row)
@@ -192,7 +177,7 @@ def markdown(s: dict, rows: list[dict], command: str, figure: str | None) -> str
     return "\n".join(lines) + "\n"
 
 
-def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Photo], picks: list[int],
+def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Record], picks: list[int],
                   tags: dict[int, str], prep: PhotoPrep = PhotoPrep(),
                   display_scale: float = 0.25) -> None:
     """photo | neural | refined for the rows ``picks``, each labelled ``tags[i]`` and its
@@ -208,22 +193,20 @@ def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Photo], picks: 
         res = FitResult(YarnParams.from_dict(r["neural"]), YarnParams.from_dict(r["refined"]),
                         r["loss_neural"], r["loss_refined"], r["improved"],
                         tilt_deg=r.get("tilt_deg", 0.0))
-        panels += list(display_renders(renderer, prep.load(photos[i]),
-                                       photos[i].pixel_size_mm, res, options))
+        panels += list(display_renders(renderer, prep.load(photos[i]), res, options))
         labels += [f"{tags[i]}: {Path(r['image']).name}", f"neural  loss {r['loss_neural']:.4f}",
                    f"refined  loss {r['loss_refined']:.4f}"]
     write_png(path, compare_image(panels, labels))
 
 
-def compare(photos: Sequence[Photo], out: Path, ensemble, options, prior: bool = True,
+def compare(photos: Sequence[Record], out: Path, ensemble, options, prior: bool = True,
             prep: PhotoPrep = PhotoPrep(), figure_count: int = 4, progress=None,
             command: str = "ipm compare") -> dict:
     """Fit every photo (:func:`photos_in`), resuming a stopped run in ``out``, and write the
     report; returns the summary."""
-    truth = [p.truth for p in photos]
+    truth = [p.params for p in photos]
     out.mkdir(parents=True, exist_ok=True)
-    rows = fit_all(out / FITS, photos, lambda i, image: ensemble.predict(
-        image, photos[i].pixel_size_mm), options,
+    rows = fit_all(out / FITS, photos, lambda i, photo: ensemble.predict(photo), options,
         ensemble.sigma(photos[0].pixel_size_mm) if prior and photos else None, prep,
         progress)
     s = summary(rows, truth)

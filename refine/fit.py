@@ -17,7 +17,7 @@ import numpy as np
 
 from ipm.errors import UserError
 from ipm.params import YarnParams
-from ipm.photo import linear_to_srgb, srgb_to_linear, to_scene_pitch
+from ipm.photo import Photo, linear_to_srgb, srgb_to_linear
 from ipm.refine.objective import RenderObjective, centre_crop, to_tensor
 from ipm.refine.search import SearchOptions, SearchResult, search
 from ipm.refine.stats import centre_rows, yarn_centre, yarn_tilt
@@ -117,17 +117,15 @@ def match_colour(objective: RenderObjective, params: YarnParams, photo: np.ndarr
     return params
 
 
-def fit(photo: np.ndarray, pixel_size_mm: float, neural: YarnParams, renderer,
-        options: FitOptions = FitOptions(), refine: bool = True,
-        on_eval: Callable[[int, float, float], None] | None = None,
+def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOptions(),
+        refine: bool = True, on_eval: Callable[[int, float, float], None] | None = None,
         sigma: dict[str, float] | None = None) -> FitResult:
-    """Fit one photo ((H, W, 3) sRGB in [0, 1], ``pixel_size_mm`` per pixel at the yarn)
-    starting from the nets' parameters ``neural``; ``sigma``, the nets' error per parameter
-    (:meth:`ipm.nets.ensemble.Ensemble.sigma`), makes the search a MAP estimate around them
-    (:mod:`ipm.refine.search`)."""
+    """Fit ``photo`` starting from the nets' parameters ``neural``; ``sigma``, the nets'
+    error per parameter (:meth:`ipm.nets.ensemble.Ensemble.sigma`), makes the search a MAP
+    estimate around them (:mod:`ipm.refine.search`)."""
     t0 = time.perf_counter()
-    warnings = [w for w in (exposure_warning(photo),) if w]
-    small = to_scene_pitch(photo, pixel_size_mm, options.scale)
+    warnings = [w for w in (exposure_warning(photo.image),) if w]
+    small = photo.at_pitch(options.scale)
     seen = core_contrast(small) >= MIN_CORE_CONTRAST
     tilt = photo_tilt(small) if seen else 0.0
     objective = RenderObjective(renderer, small, options.scale, options.spp,
@@ -164,11 +162,11 @@ def _mean_loss(objective: RenderObjective, p: YarnParams, opts: SearchOptions) -
     return float(np.mean([objective(p, s) for s in (opts.fiber_seed, *opts.rescore_seeds)]))
 
 
-def display_renders(renderer, photo: np.ndarray, pixel_size_mm: float, result: FitResult,
-                    options: FitOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def display_renders(renderer, photo: Photo, result: FitResult, options: FitOptions
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(photo, neural render, refined render) as sRGB at ``display_scale``, cut to their
     common extent."""
-    shown = to_scene_pitch(photo, pixel_size_mm, options.display_scale)
+    shown = photo.at_pitch(options.display_scale)
     capture = Photometric(rotation_deg=result.tilt_deg)
     renders = [linear_to_srgb(renderer.render(p, options.search.fiber_seed,
                                               options.display_scale, options.display_spp,

@@ -15,8 +15,8 @@ search is a MAP estimate instead of a plain minimum: it minimises
 ``s_L`` is the seed noise of the loss at the start (the spread of ``L`` over the fiber
 seeds).  A loss difference of one unit of its own seed noise then cannot pull a parameter
 further than ``sqrt(2) sigma`` from the nets' guess, and the box shrinks to
-``box_sigmas * sigma`` around it.  Why: the image loss alone moved ``R_ply``, which the nets
-get to 2% of its range, to 5% on 15 held-out photos (an earlier loss, without the prior).
+``box_sigmas * sigma`` around it.  Why: the image loss alone moves parameters the nets
+already get well (``R_ply``) away from them (docs/identifiability.md).
 """
 
 from __future__ import annotations
@@ -39,21 +39,11 @@ ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_
 
 @dataclass(frozen=True)
 class SearchOptions:
-    """params: continuous parameters to search.  By default only alpha_ply, with DIRECT-L
-    (a global search of the box) and a budget of 30: on 30 held-out photos (``ipm compare
-    data/test --count 30``) it lowered the MAE of alpha_ply by 34% with the current nets
-    and scene (2.9% -> 1.9% of its range, median 1.8% -> 0.3%, 8 of 30 made worse;
-    docs/compare), by 34% with the nets before blur augmentation (2.7% -> 1.8%, 6 of 30
-    worse), by 28% with the nets trained on one noise level (4.2% -> 3.0%; 26% before
-    the loss had its ``stripes`` group) and by 40% with the first ones (4.0% -> 2.4%;
-    docs/compare-alpha_ply); BOBYQA at the same budget on those 30 left it at 4.0% -> 4.1%
-    (docs/compare-alpha_ply-bobyqa): the autocorrelation has side minima in alpha_ply that
-    trap a local search.  Of the 7 of 30 the one-noise-level run made worse, the 2 looked at
-    had the nets' n or m and ply radii off, and there the loss has no minimum at the true
-    alpha_ply.  Searched jointly with alpha_ply, R_ply moved away from the truth (the core
-    profile trades R_ply against the ply radii), and r_y alone did too (4.0% -> 5.8%,
-    docs/compare-r_y); the loss cannot see alpha (docs/identifiability.md).  The other
-    parameters keep the nets' values.
+    """params: continuous parameters to search.  By default only alpha_ply, the one the
+    loss identifies (docs/identifiability.md), with DIRECT-L, a global search of the box:
+    the autocorrelation has side minima in alpha_ply that trap a local search such as
+    BOBYQA.  R_ply and the ply radii trade against each other in the core profile and the
+    loss cannot see alpha, so they keep the nets' values (measured in docs/compare*/).
 
     algorithm: an NLopt derivative-free algorithm.  budget: objective evaluations of the
     search (re-scoring comes on top).  time_s: wall-time bound of the search.  width:
@@ -86,6 +76,8 @@ class SearchOptions:
                             f"for {len(self.params)} parameters, got {self.budget}")
         if not 0 < self.width <= 1:
             raise UserError(f"width must be in (0, 1], got {self.width}")
+        if self.time_s is not None and not (np.isfinite(self.time_s) and self.time_s > 0):
+            raise UserError(f"time must be a positive number of seconds, got {self.time_s}")
         if self.prior_weight < 0 or self.box_sigmas <= 0:
             raise UserError(f"prior_weight must be >= 0 and box_sigmas > 0, got "
                             f"{self.prior_weight}, {self.box_sigmas}")

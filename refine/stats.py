@@ -1,18 +1,18 @@
 """Image statistics of a yarn photo that do not depend on where each random fiber lands.
 
 A render with the right parameters and another fiber seed should score as well as the photo
-itself, so the loss compares statistics, not pixels (DESIGN.md).  The yarn runs horizontally;
-after centring it vertically, the image is cut into horizontal strips (the core band in the
-middle, the border band with the flyaways outside) and each strip is described by:
+itself, so the loss compares statistics, not pixels.  The yarn runs horizontally; after
+centring it vertically, the groups (:data:`GROUPS`) are:
 
-* ``profile``: the mean signed deviation from the background per row (occupancy across the
-  yarn: core thickness ``2 (R_ply + r)``, flyaway density by distance);
-* ``texture``: the standard deviation along each row;
-* ``orientation``: magnitude-weighted double-angle moments of the image gradient (harmonics 2
-  and 4 of the orientation histogram) and the log gradient energy: the helix angles of the
-  fibers and plies, and the direction of twist;
-* ``spectrum``: log power in log-spaced frequency bands along the axis, relative to the
-  strip's mean power: the periodicity of the ply twist (``alpha_ply / n``) and of the fibers;
+* ``core``: per row, the median deviation from the background along the axis (the median
+  ignores sparse flyaways: the core's occupancy, thickness ``2 (R_ply + r)``);
+* ``flyaways``: per row, the mean minus that median: what the flyaways add at each distance
+  from the axis;
+* ``orientation``: per horizontal strip, magnitude-weighted double-angle moments of the
+  image gradient (harmonics 2 and 4 of the orientation histogram) and the log gradient
+  energy: the helix angles of the fibers and plies, and the direction of twist;
+* ``spectrum``: log power of the core band in log-spaced frequency and orientation bins:
+  the periodicity of the ply twist (``alpha_ply / n``) and of the fibers;
 * ``period``, ``stripes``: of the core band along the axis, its autocorrelation and the
   cumulative distribution of its power over log frequency: the ply stripes' period;
 * ``histogram``: a soft intensity histogram of the whole image.

@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 
 from ipm.errors import UserError
-from ipm.io import check_writable_folder
+from ipm.io import check_not_inputs, check_output
 
 DEFAULT_RENDER_SCALE = 0.25
 DEFAULT_RENDER_SPP = 16
@@ -51,7 +51,7 @@ def render(
     from ipm.render.scene import frame_size
 
     frame_size(scale)
-    check_writable_folder(out.parent if str(out.parent) else Path("."))
+    check_output(out)
     if contact_sheet:
         if params is not None or preset is not None:
             raise UserError("--contact-sheet renders the 12 presets; give no parameters")
@@ -63,6 +63,10 @@ def render(
     if (params is None) == (preset is None):
         raise UserError("give a parameter file or --preset NAME (or --contact-sheet)")
     p = get_preset(preset) if preset else YarnParams.load(params)
+    xml = Path(out).with_suffix(".xml")
+    check_not_inputs([xml, xml.with_name(xml.stem + "_curves.txt")]
+                     if format is RenderFormat.xml else [out, out.with_suffix(".json")],
+                     [params])
     if format is RenderFormat.xml:
         from ipm.render.export import save_scene_xml
 

@@ -1,15 +1,14 @@
 """The synthetic dataset (paper section "Yarn dataset"): guided-prior yarns rendered in THE
 scene, with a manifest the nets read.
 
-Dataset contract (``DIR`` made by ``ipm generate``):
+A dataset (``DIR`` made by ``ipm generate``; the manifest's contract is :mod:`ipm.dataset`):
 
 * ``DIR/images/NNNNNN.png``: 8-bit sRGB RGB PNG of the 2000 x 600 frame times ``scale``.
-* ``DIR/manifest.jsonl``: one JSON object per line, sorted by ``index`` when a run ends, with
-  ``index``, ``image`` (path relative to ``DIR``), ``params`` (flat
-  :meth:`~ipm.params.YarnParams.to_dict`), ``seed`` (fiber seed), ``render_seed``,
-  ``split``, ``scale``, ``spp`` (the count this sample's render took), ``width``,
-  ``height``, ``pixel_size_mm`` and ``photometric`` (the applied
-  :class:`~ipm.render.photometric.Photometric`).
+* ``DIR/manifest.jsonl``: a :class:`~ipm.dataset.Record` per line, sorted by ``index`` when
+  a run ends; beside the core fields each line records ``render_seed``, ``split``,
+  ``scale``, ``spp`` (the count this sample's render took), ``width``, ``height``,
+  ``photometric`` (the applied :class:`~ipm.render.photometric.Photometric`) and
+  ``variant``.
 * ``DIR/dataset.json``: the settings of the run; a rerun with other settings is refused.
 
 Sample ``i`` depends only on (seed, split, i): its parameters, fiber seed, render seed,
@@ -25,7 +24,7 @@ from __future__ import annotations
 import json
 import os
 import zlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field
 from multiprocessing import get_context
@@ -34,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from ipm.dataset import MANIFEST, Record, manifest_line, read_manifest, write_manifest
 from ipm.errors import UserError
 from ipm.io import write_text
 from ipm.params import YarnParams
@@ -41,17 +41,15 @@ from ipm.prior import GuidedPrior
 from ipm.render.photometric import Photometric, PhotometricRanges
 from ipm.render.scene import DEFAULT_OPTIONS, SceneOptions, frame_size, pixel_size_mm
 
-MANIFEST = "manifest.jsonl"
 SETTINGS = "dataset.json"
 IMAGES = "images"
 
-#: Defaults chosen by measurement (benchmarks/README.md, "Render speed"): scale 0.25 (500 x
-#: 150 px) is the input scale of the default nets, so their data needs no resampling; 6 spp
-#: of the scene's stratified sampler and weighted lights are cleaner than 8 independent ones
-#: (:mod:`ipm.render.scene`) and bring the render noise below the fiber contrast; 2000
-#: images take 16 min on 2 cores.  The shipped nets were trained on ``--spp 4-24`` (several
-#: noise levels, 24 min for 2000).  The thinnest fibers are 0.3 px at scale 0.25: scale 0.5
-#: keeps them at 0.6 px, for nets trained at a higher input scale (``--scale 0.5``).
+#: Defaults chosen by measurement (benchmarks/results/render_speed.md): scale 0.25 (500 x 150
+#: px) is the input scale of the default nets, so their data needs no resampling; 6 spp of
+#: the scene's stratified sampler bring the render noise below the fiber contrast.  The
+#: shipped nets were trained on ``--spp 4-24`` (several noise levels).  The thinnest fibers
+#: are 0.3 px at scale 0.25: scale 0.5 keeps them at 0.6 px, for nets trained at a higher
+#: input scale (``--scale 0.5``).
 DEFAULT_SCALE = 0.25
 DEFAULT_SPP = 6
 
@@ -165,7 +163,7 @@ def _init_worker(variant: str | None, scene: SceneOptions, threads: int) -> None
     _renderer = Renderer(variant, scene, threads=threads)
 
 
-def make_sample(folder: str, opts: GenerateOptions, index: int) -> dict[str, Any]:
+def make_sample(folder: str, opts: GenerateOptions, index: int) -> Record:
     """Render sample ``index`` into ``folder`` (atomically) and return its manifest record.
     Runs in a worker process (its :class:`Renderer` is made by the pool initializer)."""
     from ipm.render.renderer import save_png
@@ -176,37 +174,16 @@ def make_sample(folder: str, opts: GenerateOptions, index: int) -> dict[str, Any
                              plan.photometric)
     save_png(Path(folder, image_name(index)), image)
     width, height = frame_size(opts.scale)
-    return {"index": index, "image": image_name(index), "split": opts.split,
-            "params": plan.params.to_dict(), "seed": plan.fiber_seed,
-            "render_seed": plan.render_seed, "scale": opts.scale, "spp": spp, "width": width,
-            "height": height, "pixel_size_mm": pixel_size_mm(opts.scale),
-            "photometric": plan.photometric.to_dict(), "variant": _renderer.variant}
+    return Record(Path(folder, image_name(index)), pixel_size_mm(opts.scale), plan.params,
+                  plan.fiber_seed, index=index, info={
+                      "split": opts.split, "render_seed": plan.render_seed,
+                      "scale": opts.scale, "spp": spp, "width": width, "height": height,
+                      "photometric": plan.photometric.to_dict(),
+                      "variant": _renderer.variant})
 
 
 # -- folder state ----------------------------------------------------------------------------
-def _parse_lines(path: Path) -> Iterator[dict[str, Any]]:
-    for line in path.read_text(encoding="utf-8").splitlines():
-        try:
-            rec = json.loads(line)
-        except json.JSONDecodeError:
-            continue  # the torn last line of a killed run
-        if isinstance(rec, dict) and isinstance(rec.get("index"), int) and "image" in rec:
-            yield rec
-
-
-def read_manifest(folder: str | os.PathLike) -> list[dict[str, Any]]:
-    """The samples of a dataset folder, sorted by index: the manifest's records whose image
-    exists (one per index).  Raises :class:`UserError` if ``folder`` holds no manifest."""
-    folder = Path(folder)
-    path = folder / MANIFEST
-    if not path.is_file():
-        raise UserError(f"{folder} is not a dataset: {MANIFEST} not found "
-                        "(make one with `ipm generate`)")
-    records = {r["index"]: r for r in _parse_lines(path) if (folder / r["image"]).is_file()}
-    return [records[i] for i in sorted(records)]
-
-
-def _prepare(folder: Path, opts: GenerateOptions) -> dict[int, dict[str, Any]]:
+def _prepare(folder: Path, opts: GenerateOptions) -> dict[int, Record]:
     """Check or create the folder and return the valid samples already there (index < count);
     rewrites the manifest without torn or duplicate lines."""
     if folder.exists() and not folder.is_dir():
@@ -236,15 +213,12 @@ def _prepare(folder: Path, opts: GenerateOptions) -> dict[int, dict[str, Any]]:
     else:
         write_text(settings_path, json.dumps(opts.settings(), indent=2) + "\n")
     (folder / IMAGES).mkdir(exist_ok=True)
-    done: dict[int, dict[str, Any]] = {}
-    if (folder / MANIFEST).is_file():
-        done = {r["index"]: r for r in read_manifest(folder) if r["index"] < opts.count}
-    _write_manifest(folder, done)
+    done: dict[int, Record] = {}
+    if (folder / MANIFEST).is_file():  # the samples whose image was written
+        done = {r.index: r for r in read_manifest(folder, allow_empty=True)
+                if r.index < opts.count and r.image.is_file()}
+    write_manifest(folder, list(done.values()))
     return done
-
-
-def _write_manifest(folder: Path, records: dict[int, dict[str, Any]]) -> None:
-    write_text(folder / MANIFEST, "".join(json.dumps(records[i]) + "\n" for i in sorted(records)))
 
 
 # -- the run ---------------------------------------------------------------------------------
@@ -257,7 +231,7 @@ class _RayRenderer:
     def __init__(self, variant: str | None, scene: SceneOptions, threads: int) -> None:
         _init_worker(variant, scene, threads)
 
-    def make(self, folder: str, opts: GenerateOptions, index: int) -> dict[str, Any]:
+    def make(self, folder: str, opts: GenerateOptions, index: int) -> Record:
         return make_sample(folder, opts, index)
 
 
@@ -286,13 +260,13 @@ def _ray_submit(address: str, folder: Path, opts: GenerateOptions, todo: list[in
 
 def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: int | None = None,
                      variant: str | None = None, progress: Progress | None = None,
-                     ray: str | None = None) -> list[dict[str, Any]]:
+                     ray: str | None = None) -> list[Record]:
     """Make (or complete) the dataset in ``folder`` with a local process pool, or on Ray.
 
     workers: processes (default: one per core), each with its own :class:`Renderer` and
     cores / workers render threads.  progress: called as ``progress(done, count)``.
     ray: a Ray address ("auto", "local", ``host:port``) to render on Ray actors instead;
-    the samples are the same bytes either way.  Returns the manifest records by index.
+    the samples are the same bytes either way.  Returns the records by index.
     """
     folder = Path(folder)
     cores = os.cpu_count() or 1
@@ -320,13 +294,13 @@ def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: 
                     finished, pending = wait(pending, return_when=FIRST_COMPLETED)
                     for fut in finished:
                         rec = fut.result()
-                        manifest.write(json.dumps(rec) + "\n")
+                        manifest.write(manifest_line(folder, rec))
                         manifest.flush()
-                        done[rec["index"]] = rec
+                        done[rec.index] = rec
                     if progress:
                         progress(len(done), opts.count)
         finally:
             if pool:
                 pool.shutdown(cancel_futures=True)
-    _write_manifest(folder, done)
+    write_manifest(folder, list(done.values()))
     return [done[i] for i in sorted(done)]

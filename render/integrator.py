@@ -18,10 +18,8 @@ samples are weighted against this choice by multiple importance sampling (power
 heuristic), as in ``path``.
 
 The expected image is ``path``'s (``tests/test_render.py`` compares them); only the noise
-and the time change.  At 800 x 240 px on two yarns (``python -m
-ipm.benchmarks.noise_levers``) the noise fell from 0.0166 to 0.0135 at 16 spp and from
-0.0105 to 0.0086 at 36 spp against ``path`` with :data:`ipm.render.scene.LIGHT_WEIGHTS`, a
-third less variance, and the time for Cycles' noise level by 27-30 %.  Emitters are hidden
+and the time change: less noise than ``path`` with :data:`ipm.render.scene.LIGHT_WEIGHTS`
+at the same samples (benchmarks/results/noise_levers.md).  Emitters are hidden
 from camera rays (the scene's ``hide_emitters``) and paths end after ``max_depth``
 vertices as in ``path``; no Russian roulette (the scene's depth of 3 ends paths before
 ``path``'s default rr_depth).

@@ -50,13 +50,9 @@ def world_curves(fibers: FiberSet, to_world: np.ndarray) -> tuple[np.ndarray, np
 
 
 class Renderer:
-    """Renders yarns in THE scene; one per process (kernels are compiled once per scale).
-
-    >>> r = Renderer()                                            # doctest: +SKIP
-    >>> img = r.render(preset("rose"), seed=0, scale=0.25, spp=4)  # doctest: +SKIP
-    >>> img.shape, img.dtype                                       # doctest: +SKIP
-    ((150, 500, 3), dtype('float32'))
-    """
+    """Renders yarns in THE scene; one per process (kernels are compiled once per scale):
+    ``Renderer().render(preset("rose"), seed=0, scale=0.25, spp=4)`` is a (150, 500, 3)
+    float32 linear-light image."""
 
     def __init__(self, variant: str | None = None, options: SceneOptions = DEFAULT_OPTIONS,
                  threads: int | None = None) -> None:
@@ -76,7 +72,7 @@ class Renderer:
         """What a saved image records about how it was rendered (JSON-ready)."""
         width, height = frame_size(scale)
         return {"scale": scale, "spp": spp, "render_seed": render_seed, "width": width,
-                "height": height, "pixel_size_mm": pixel_size_mm(scale),
+                "height": height, "pixel_size_mm": pixel_size_mm(scale), "setup": "frontlit",
                 "variant": self.variant, "scene": asdict(self.options)}
 
     def _load(self, scale: float, curve_text: str, color: tuple[float, float, float],

@@ -16,29 +16,21 @@ y -> world z: a cyclic permutation, so a rotation).
   copy stand) and a dim uniform room light; the backdrop is a matte dark-grey card far enough
   behind the yarn (50 mm) that no flyaway crosses it and out of the lights' specular path.
 * Fibers: Mitsuba's ``principled`` BSDF with the yarn's albedo as base colour, a rough
-  specular lobe and sheen (the soft grazing highlight of textile fibers).  Measured against
-  Mitsuba's ``hair`` BSDF (Chiang et al. 2016, the model behind the Blender shader the paper
-  used) with Chiang's colour-to-absorption mapping, on the ``rose`` and ``blue`` presets at
-  1000 x 300 px, 16 spp: ``hair`` took 4.5-5.1 s (depth 5, needed for light through fibers)
-  against 2.6-3.1 s (depth 3), was much noisier (glints) and came out dark and desaturated
-  under these lights; ``principled`` reproduces the yarn's colour.
-* Pixels integrate their footprint with a box filter, like a sensor pixel; a Gaussian
-  reconstruction filter cost 2.5x the render time here (its splats are scattered adds).
-  Sample positions are stratified (Mitsuba's ``multijitter`` sampler): a fiber thinner than
-  a pixel makes coverage a large part of the noise, and stratified positions estimate it
-  better than independent ones.  Measured (``python -m ipm.benchmarks.render_speed``): at
-  800 x 240 px and 64 spp a noise of 1.7 against 2.6 8-bit levels with ``independent`` in
-  about the same time; at the dataset's scale 0.25, 6 spp (7.6 levels) are cleaner than 8
-  independent spp (8.6), in less time.
+  specular lobe and sheen (the soft grazing highlight of textile fibers).  Mitsuba's
+  ``hair`` BSDF (Chiang et al. 2016, behind the Blender shader the paper used) was slower
+  (it needs a deeper path for light through fibers), noisier (glints) and dark and
+  desaturated under these lights; ``principled`` reproduces the yarn's colour.
+* Pixels integrate their footprint with a box filter, like a sensor pixel (a Gaussian
+  reconstruction filter's scattered splats cost several times the render time).  Sample
+  positions are stratified (Mitsuba's ``multijitter`` sampler): a fiber thinner than a pixel
+  makes coverage a large part of the noise, and stratified positions estimate it better
+  than independent ones (benchmarks/results/render_speed.md).
 * Next-event estimation (``ipm_path``, :mod:`ipm.render.integrator`) samples at every
   vertex one soft box, chosen by how much of it is above the surface's horizon times its
   share of the light (:data:`LIGHT_WEIGHTS`), and leaves the room light to the BSDF's
-  samples: Mitsuba's ``path`` image with a third less noise variance in about the same
-  time (800 x 240 px: 0.0166 -> 0.0135 at 16 spp, 0.0105 -> 0.0086 at 36 spp).
-  With ``path`` (``SceneOptions(integrator="path")``) the lights are picked by
-  :data:`LIGHT_WEIGHTS`, not with Mitsuba's equal probability: a third less noise variance
-  (800 x 240 px: 0.0205 -> 0.0166 at 16 spp, 0.0130 -> 0.0105 at 36 spp; ``python -m
-  ipm.benchmarks.noise_levers``).
+  samples: less noise than Mitsuba's ``path`` in about the same time.  With ``path``
+  (``SceneOptions(integrator="path")``) the lights are picked by :data:`LIGHT_WEIGHTS`, not
+  with Mitsuba's equal probability (benchmarks/results/noise_levers.md).
 * Cross-sections: Mitsuba's curves are round; each fiber gets the radius sqrt(t_x t_y) of
   the circle with its ellipse's area (:meth:`ipm.FiberSet.round_radii`), so the fiber
   volume, and with it how much a ply of ``m`` fibers fills, is kept.  Seen from random
@@ -75,10 +67,8 @@ SOFT_BOXES = (("key_left", (-200.0, 50.0, 200.0), 150.0, 1.0),
 #: share; the room light rarely, because Mitsuba samples a constant emitter's directions over
 #: the whole sphere (half of them below the fiber's surface) while the BSDF's own samples
 #: find it well and multiple importance sampling weighs them in.  The expected image is the
-#: same; the noise at 800 x 240 px, 25 spp on two yarns (benchmarks/noise_levers.py) was
-#: 0.0142 with the room at 0.4 (its share of the light), 0.0135 at 0.2, 0.0129 at 0.05 and
-#: 0.0128 at 0.02; the right soft box at 0.4, 0.6, 0.8 and 1 changed it by under 5 %.
-#: ``ipm_path`` weighs the soft boxes' reach by these and never light-samples the room.
+#: same, the noise lower (benchmarks/results/noise_levers.md).  ``ipm_path`` weighs the soft
+#: boxes' reach by these and never light-samples the room.
 LIGHT_WEIGHTS = {"key_left": 1.0, "key_right": 0.6, "room": 0.05}
 LIGHT_SAMPLING = ("weighted", "uniform")
 #: :mod:`ipm.render.integrator`'s lamp choice by reach, or Mitsuba's ``path`` (the scene's

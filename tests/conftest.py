@@ -3,6 +3,17 @@ import pytest
 
 from ipm.prior import GuidedPrior
 
+#: Test modules that render, generate datasets, train or fit: marked ``slow``, so that
+#: ``pytest -m "not slow"`` is a quick run; plain ``pytest`` runs everything.
+SLOW_MODULES = {"test_render", "test_generate", "test_nets_train", "test_refine_fit",
+                "test_refine_compare", "test_bench"}
+
+
+def pytest_collection_modifyitems(items):
+    for item in items:
+        if item.module.__name__.rpartition(".")[2] in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)
+
 
 @pytest.fixture(scope="session")
 def sampled_params():

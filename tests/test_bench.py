@@ -73,12 +73,15 @@ def test_resume_refuses_other_settings(first, heldout):
 def test_perturbations_change_the_image_and_keep_its_shape():
     import numpy as np
 
+    from ipm.photo import Photo
+
     img = np.random.default_rng(0).random((20, 40, 3)).astype(np.float32)
+    photo = Photo(img, 0.04)
     for kind, level in (("exposure", 1.0), ("noise", 0.03), ("blur", 1.5), ("rotation", 5.0)):
-        out = perturb(img, kind, level)
+        out = perturb(photo, kind, level).image
         assert out.shape == img.shape and 0 <= out.min() and out.max() <= 1
         assert np.abs(out - img).mean() > 1e-3, kind
-    assert perturb(img, "exposure", 1.0).mean() > img.mean()
+    assert perturb(photo, "exposure", 1.0).image.mean() > img.mean()
 
 
 def test_cli_bad_output_folder_one_line(tmp_path):

@@ -91,3 +91,41 @@ def test_atomic_writes_leave_files_readable_like_open_does(tmp_path):
         assert stat.S_IMODE((tmp_path / "a.json").stat().st_mode) == 0o644
     finally:
         os.umask(mask)
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan"])
+def test_fit_rejects_a_bad_time_limit(tmp_path, value):
+    r = ipm("fit", tmp_path / "p.png", "--refine", "--time", value, "--out", tmp_path / "f")
+    assert r.returncode == 2 and r.stderr.startswith("error: time must be"), r.stderr
+    assert r.stderr.count("\n") == 1 and not (tmp_path / "f").exists()
+
+
+def test_an_output_that_is_an_input_is_refused(tmp_path):
+    from PIL import Image
+
+    params, photo = tmp_path / "p.json", tmp_path / "neural.png"
+    params.write_text(preset("golden").to_json())
+    Image.new("RGB", (64, 32)).save(photo)
+    before = params.read_bytes(), photo.read_bytes()
+    for args in (("curves", params, "-o", params),
+                 ("render", params, "-o", tmp_path / "p.png"),  # its sidecar is p.json
+                 ("predict", photo, "-o", photo),
+                 ("fit", photo, "--out", tmp_path)):
+        r = ipm(*args, cwd=tmp_path)
+        assert r.returncode == 2 and "is an input of this command" in r.stderr, (args, r.stderr)
+        assert r.stderr.count("\n") == 1
+    assert (params.read_bytes(), photo.read_bytes()) == before
+
+
+def test_an_output_file_that_is_a_folder_is_refused(tmp_path):
+    from PIL import Image
+
+    params, photo, folder = tmp_path / "p.json", tmp_path / "y.png", tmp_path / "d"
+    params.write_text(preset("golden").to_json())
+    Image.new("RGB", (64, 32)).save(photo)
+    folder.mkdir()
+    for args in (("sample", "-o", folder), ("curves", params, "-o", folder),
+                 ("render", params, "-o", folder), ("predict", photo, "-o", folder)):
+        r = ipm(*args)
+        assert r.returncode == 2 and "is a folder" in r.stderr, (args, r.stderr)
+        assert r.stderr.count("\n") == 1

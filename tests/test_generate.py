@@ -13,13 +13,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from ipm.dataset import MANIFEST, read_manifest
 from ipm.errors import UserError
 from ipm.params import YarnParams
 from ipm.render.dataset import (
-    MANIFEST,
     GenerateOptions,
     generate_dataset,
-    read_manifest,
     sample_plan,
     sample_seeds,
     spp_range,
@@ -87,15 +86,16 @@ def test_manifest_contract(tmp_path):
     records = generate_dataset(tmp_path / "ds", GenerateOptions(count=3, seed=1, scale=0.1,
                                                                 spp=2), workers=2)
     assert records == read_manifest(tmp_path / "ds")
-    assert records == check_dataset(tmp_path / "ds", 3)
-    for r in records:
+    assert [r.to_dict(tmp_path / "ds") for r in records] == check_dataset(tmp_path / "ds", 3)
+    for r in map(json.loads, (tmp_path / "ds" / MANIFEST).read_text().splitlines()):
         assert {"image", "params", "seed", "split", "index", "scale", "spp", "pixel_size_mm",
-                "photometric"} <= set(r)
+                "setup", "photometric"} <= set(r)
+        assert r["setup"] == "frontlit"
         assert r["image"] == f"images/{r['index']:06d}.png" and r["split"] == "train"
         assert r["pixel_size_mm"] == pytest.approx(0.1)
         YarnParams.from_dict(r["params"])
         Photometric.from_dict(r["photometric"])
-    assert len({r["seed"] for r in records}) == 3
+    assert len({r.seed for r in records}) == 3
 
 
 def test_kill_and_rerun_gives_exactly_n_samples_with_the_same_bytes(tmp_path):
@@ -144,8 +144,8 @@ def test_rerun_completes_and_grows(tmp_path):
     generate_dataset(out, GenerateOptions(count=2, scale=0.1, spp=2), workers=1)
     (out / "images" / "000001.png").unlink()  # an image lost: its line is dropped, re-rendered
     records = generate_dataset(out, GenerateOptions(count=4, scale=0.1, spp=2), workers=2)
-    assert [r["index"] for r in records] == [0, 1, 2, 3] == [r["index"] for r in
-                                                             check_dataset(out, 4)]
+    assert [r.index for r in records] == [0, 1, 2, 3] == [r["index"] for r in
+                                                          check_dataset(out, 4)]
 
 
 def test_bad_input_one_line_exit_2_nothing_lost(tmp_path):
@@ -190,7 +190,7 @@ def test_photometric_off_is_nominal(tmp_path):
     r = ipm("generate", "--count", 1, "--out", tmp_path / "ds", "--no-photometric", *TINY)
     assert r.returncode == 0, r.stderr
     rec = read_manifest(tmp_path / "ds")[0]
-    ph = Photometric.from_dict(rec["photometric"])
+    ph = Photometric.from_dict(rec.info["photometric"])
     assert ph.exposure_stops == 0 and ph.shift_mm == (0, 0) and ph.noise == (0, 0)
     assert np.allclose(ph.white_balance, 1)
 
@@ -207,7 +207,9 @@ def test_ray_gives_the_same_samples_as_the_local_pool(tmp_path):
         ray.shutdown()
     # the same samples (parameters, seeds, capture variation); for the bytes of the images
     # see test_samples_are_the_same_bytes_across_processes
-    assert [{**r, "variant": None} for r in local] == [{**r, "variant": None} for r in remote]
+    assert ([{**r.info, "variant": None} for r in local]
+            == [{**r.info, "variant": None} for r in remote])
+    assert [r.params for r in local] == [r.params for r in remote]
     check_dataset(tmp_path / "ray", 4)
 
 

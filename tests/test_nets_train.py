@@ -75,9 +75,9 @@ def test_every_preset_trains_and_predicts(trained, preset, photo):
         info = json.loads((run / name / "model.json").read_text())
         assert info["epoch"] == 1 and "baseline" in info and info["val"]["loss"] >= 0
         assert (run / name / "checkpoint.safetensors").is_file()
-    from ipm.photo import read_image
+    from ipm.photo import Photo
 
-    params = Ensemble.load(run).predict(read_image(photo), pixel_size_mm=0.01 / SCALE)
+    params = Ensemble.load(run).predict(Photo.read(photo, 0.01 / SCALE))
     assert isinstance(params, YarnParams)
 
 
@@ -91,6 +91,24 @@ def test_predict_cli(trained, photo, tmp_path):
     # the written file is what `ipm curves` reads
     r = ipm("curves", tmp_path / "p.json", "-o", tmp_path / "y.npz")
     assert r.returncode == 0, r.stderr
+
+
+def test_predict_several_photos_in_one_process(trained, photo, tmp_path):
+    import shutil
+
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    for name in ("a.png", "b.png"):
+        shutil.copy(photo, folder / name)
+    args = ("--pixel-size", 0.01 / SCALE, "--models", trained["ensemble"])
+    r = ipm("predict", folder, *args, "-o", tmp_path / "out")
+    assert r.returncode == 0, r.stderr
+    one = ipm("predict", photo, *args)
+    for name in ("a", "b"):
+        written = YarnParams.load(tmp_path / "out" / f"{name}.json")
+        assert written == YarnParams.from_json(one.stdout)
+    r = ipm("predict", folder / "a.png", folder / "b.png", *args)
+    assert r.returncode == 2 and "--out FOLDER" in r.stderr
 
 
 def test_predict_warns_when_the_photo_is_coarser_than_the_nets(trained, photo):
@@ -233,7 +251,8 @@ def test_predict_bad_photo(trained, tmp_path, kind, message):
     from ipm.nets.commands import predict
 
     with pytest.raises(UserError, match=message):
-        predict(_bad_photo(tmp_path, kind), pixel_size=0.01 / SCALE, models=trained["ensemble"])
+        predict([_bad_photo(tmp_path, kind)], pixel_size=0.01 / SCALE,
+                models=trained["ensemble"])
 
 
 def test_predict_bad_photo_cli(trained, tmp_path):
@@ -249,7 +268,7 @@ def test_predict_accepts_other_modes(trained, photo, tmp_path, mode, capsys):
     img = (Image.fromarray(np.asarray(img.convert("L")).astype(np.uint16) * 257)
            if mode == "I;16" else img.convert(mode))
     img.save(tmp_path / "m.png")
-    predict(tmp_path / "m.png", pixel_size=0.01 / SCALE, models=trained["ensemble"])
+    predict([tmp_path / "m.png"], pixel_size=0.01 / SCALE, models=trained["ensemble"])
     assert YarnParams.from_json(capsys.readouterr().out)
 
 
@@ -272,6 +291,19 @@ def test_predict_bad_models(damaged_run, damage, message):
     damage(damaged_run)
     with pytest.raises(UserError, match=message):
         Ensemble.load(damaged_run)
+
+
+def test_predict_nan_weights_in_an_integer_net_cli(damaged_run, photo):
+    from safetensors.torch import load_file, save_file
+
+    path = damaged_run / "m" / "model.safetensors"
+    tensors = load_file(path)
+    tensors = {k: v.fill_(float("nan")) if v.is_floating_point() else v
+               for k, v in tensors.items()}
+    save_file(tensors, path)
+    r = ipm("predict", photo, "--pixel-size", 0.01 / SCALE, "--models", damaged_run)
+    _one_line_error(r)
+    assert "non-finite weights" in r.stderr
 
 
 def test_predict_bad_models_cli(damaged_run, photo):

@@ -11,8 +11,8 @@ from PIL import Image
 from ipm.errors import UserError
 from ipm.photo import (
     MAX_PIXELS,
+    Photo,
     linear_to_srgb,
-    load_photo,
     read_image,
     srgb_to_linear,
     to_scene_pitch,
@@ -138,11 +138,21 @@ def test_to_scene_pitch_sizes():
         to_scene_pitch(img, 0.0)
 
 
-def test_load_photo_min_size(tmp_path):
-    path = save(tmp_path, "a.png", Image.fromarray(RGB))
-    assert load_photo(path, 0.01, 1.0, min_size=(30, 40)).shape == (30, 40, 3)
-    with pytest.raises(UserError, match=r"at least 80x60 px"):
-        load_photo(path, 0.01, 0.5, min_size=(30, 40))
+def test_photo_min_size(tmp_path):
+    photo = Photo.read(save(tmp_path, "a.png", Image.fromarray(RGB)), 0.01)
+    assert photo.at_pitch(1.0, min_size=(30, 40)).shape == (30, 40, 3)
+    with pytest.raises(UserError, match=r"a.png \(40x30 px\) is too small.*at least 80x60 px"):
+        photo.at_pitch(0.5, min_size=(30, 40))
+
+
+def test_photo_inverted_and_defocused():
+    img = np.random.default_rng(0).random((20, 30, 3)).astype(np.float32)
+    photo = Photo(img, 0.02)
+    assert np.array_equal(photo.inverted().image, 1 - img)
+    assert photo.inverted().pixel_size_mm == 0.02 and photo.setup == "frontlit"
+    assert photo.defocused(0) is photo
+    blurred = photo.defocused(0.04).image  # 2 px
+    assert blurred.shape == img.shape and blurred.std() < img.std()
 
 
 def test_srgb_round_trip():

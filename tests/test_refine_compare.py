@@ -56,7 +56,7 @@ def test_plain_folder_has_no_labels(dataset, ensemble, tmp_path):
     shutil.copy(first, photos / "yarn.png")
     (photos / "notes.txt").write_text("not a photo")
     listed = photos_in(photos, 0.04)
-    assert [p.image.name for p in listed] == ["yarn.png"] and listed[0].truth is None
+    assert [p.image.name for p in listed] == ["yarn.png"] and listed[0].params is None
     s = compare(listed, tmp_path / "out", ensemble, OPTIONS, figure_count=0)
     assert s["count"] == 1 and s["params"] == {}
     head = (tmp_path / "out" / "results.csv").read_text().splitlines()[0]
@@ -90,10 +90,11 @@ def test_photo_prep_blurs_in_mm_and_inverts(dataset):
     from ipm.photo import srgb_to_linear
 
     photo = photos_in(dataset, 0.01)[0]
-    sharp, blurred = PhotoPrep().load(photo), PhotoPrep(blur_mm=2 * photo.pixel_size_mm).load(photo)
+    sharp, blurred = (PhotoPrep().load(photo).image,
+                      PhotoPrep(blur_mm=2 * photo.pixel_size_mm).load(photo).image)
     assert np.std(highpass(blurred)) < 0.5 * np.std(highpass(sharp))
     light = [srgb_to_linear(x).mean() for x in (sharp, blurred)]
     assert light[1] == pytest.approx(light[0], rel=0.01)  # blurred in linear light
-    assert np.allclose(PhotoPrep(invert=True).load(photo), 1 - sharp)
+    assert np.allclose(PhotoPrep(invert=True).load(photo).image, 1 - sharp)
     with pytest.raises(UserError, match="blur must be in"):
         PhotoPrep(blur_mm=2.0)

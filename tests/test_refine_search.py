@@ -61,7 +61,10 @@ def test_deterministic():
 @pytest.mark.parametrize("kw, match", [(dict(params=("n",)), "cannot search"),
                                        (dict(algorithm="LN_FOO"), "unknown algorithm"),
                                        (dict(budget=3), "budget must be"),
-                                       (dict(width=0.0), "width")])
+                                       (dict(width=0.0), "width"),
+                                       (dict(time_s=0.0), "time must be"),
+                                       (dict(time_s=-1.0), "time must be"),
+                                       (dict(time_s=float("nan")), "time must be")])
 def test_bad_options(kw, match):
     with pytest.raises(UserError, match=match):
         SearchOptions(**kw)

@@ -54,6 +54,8 @@ def presets() -> None:
 class CurveFormat(str, Enum):
     npz = "npz"
     mitsuba = "mitsuba"
+    usd = "usd"
+    ply = "ply"
 
 
 @app.command()
@@ -62,19 +64,80 @@ def curves(
     out: Annotated[Path, typer.Option("-o", "--out", help="file to write")],
     seed: Annotated[int, typer.Option(help="seed of the fiber generator")] = 0,
     format: Annotated[CurveFormat, typer.Option(help="npz: arrays (points, offsets, radii, "
-                                                "kind, ply); mitsuba: a linearcurve file")]
+                                                "kind, ply); mitsuba: a linearcurve file; "
+                                                "usd: a BasisCurves prim (.usda text, .usd/"
+                                                ".usdc binary); ply: polylines")]
     = CurveFormat.npz,
+    knit: Annotated[str | None, typer.Option(help="the fibers of a knitted patch of this "
+                                             "pattern (knit, purl, garter, rib) instead of "
+                                             "a straight yarn")] = None,
+    stitches: Annotated[str, typer.Option(help="with --knit: WALESxCOURSES")] = "8x6",
 ) -> None:
-    """Generate the yarn's fibers (mm, yarn axis = z) and write them."""
+    """Generate the yarn's fibers (mm; a straight yarn along z, or with --knit a patch in
+    the xy plane, knit face towards +z) and write them."""
     from ipm.generator import generate
     from ipm.params import YarnParams
 
     p = YarnParams.load(params)
     check_output(out)
     check_not_inputs([out], [params])
-    fs = generate(p, seed)
-    (fs.save_npz if format is CurveFormat.npz else fs.save_mitsuba)(out)
+    if knit is None:
+        fs = generate(p, seed)
+    else:
+        from ipm.knit import knit_patch
+        from ipm.render.commands import _stitches
+
+        fs = knit_patch(p, knit, *_stitches(stitches), seed).fibers
+    {CurveFormat.npz: fs.save_npz, CurveFormat.mitsuba: fs.save_mitsuba,
+     CurveFormat.usd: fs.save_usd, CurveFormat.ply: fs.save_ply}[format](out)
     typer.echo(f"{fs.num_fibers} fibers, {len(fs.points)} vertices -> {out}", err=True)
+
+
+@app.command()
+def edit(
+    params: Annotated[Path, typer.Argument(help="yarn parameters (JSON, as `ipm sample`)")],
+    set_: Annotated[list[str], typer.Option("--set", help="NAME=VALUE or NAME=*FACTOR, e.g. "
+                                            "alpha_ply=*0.5 (repeat for several)")],
+    out: Annotated[Path | None, typer.Option("-o", "--out", help="JSON file to write; "
+                                             "stdout if omitted")] = None,
+) -> None:
+    """Make a new yarn from one: set or scale parameters (each result must stay inside its
+    interval), as the paper's editing figure (twist changed, flyaways doubled)."""
+    from ipm.edit import apply_edits
+    from ipm.params import YarnParams
+
+    p = apply_edits(YarnParams.load(params), set_)
+    if out is None:
+        typer.echo(p.to_json())
+        return
+    check_output(out)
+    write_text(out, p.to_json() + "\n")
+
+
+@app.command()
+def calibrate(
+    ruler: Annotated[Path, typer.Argument(help="photo of a millimetre scale, taken with the "
+                                          "same camera, lens and distance as the yarn")],
+    out: Annotated[Path | None, typer.Option("-o", "--out", help="calibration file to write "
+                                             "(JSON, for `ipm fit --calibration`)")] = None,
+    tick_mm: Annotated[float, typer.Option(help="distance between the scale's finest ticks "
+                                           "(mm)")] = 1.0,
+) -> None:
+    """Measure the pixel size (mm per pixel) of a capture setup from a photo of a ruler:
+    every length ipm reports comes from it."""
+    from ipm.calibrate import calibrate as measure
+    from ipm.photo import read_image
+
+    if not (tick_mm > 0 and np.isfinite(tick_mm)):
+        raise UserError(f"--tick-mm must be a positive number, got {tick_mm}")
+    if out is not None:
+        check_output(out)
+        check_not_inputs([out], [ruler])
+    cal = measure(read_image(ruler).mean(axis=2), str(ruler), tick_mm)
+    typer.echo(f"{cal.pixel_size_mm:.6g} mm per pixel ({cal.tick_period_px:.2f} px per "
+               f"{tick_mm:g} mm, scale at {cal.angle_deg:.1f} deg)")
+    if out is not None:
+        write_text(out, cal.to_json() + "\n")
 
 
 # render/
@@ -83,6 +146,7 @@ from ipm.render import commands as render_commands  # noqa: E402  (mitsuba loads
 app.command("render")(render_commands.render)
 app.command("generate")(render_commands.generate)
 app.command("doctor")(render_commands.doctor)
+app.command("knit")(render_commands.knit)
 
 
 # nets/

@@ -85,6 +85,86 @@ def render(
                f"-> {out}", err=True)
 
 
+def _stitches(text: str) -> tuple[int, int]:
+    """``WALESxCOURSES`` (e.g. 8x6) as two integers in [1, 40]."""
+    try:
+        wales, courses = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise UserError(f"--stitches {text!r}: expected WALESxCOURSES, e.g. 8x6") from None
+    if not (1 <= wales <= 40 and 1 <= courses <= 40):
+        raise UserError(f"--stitches {text!r}: wales and courses must be in 1-40")
+    return wales, courses
+
+
+def knit(
+    params: Annotated[Path, typer.Argument(help="yarn parameters (JSON, as `ipm sample`, "
+                                           "or a fit's params.json: its refined yarn)")],
+    out: Annotated[Path, typer.Option("-o", "--out", help="image to write (.png)")]
+    = Path("patch.png"),
+    pattern: Annotated[str, typer.Option(help="knit | purl | garter | rib (1x1)")] = "knit",
+    stitches: Annotated[str, typer.Option(help="WALESxCOURSES")] = "8x6",
+    size: Annotated[str, typer.Option(help="image WIDTHxHEIGHT in pixels")] = "1000x1000",
+    spp: Annotated[int, typer.Option(min=1, help="samples per pixel")] = DEFAULT_RENDER_SPP,
+    seed: Annotated[int, typer.Option(help="seed of the fiber generator (course k uses "
+                                      "seed + k)")] = 0,
+    render_seed: Annotated[int, typer.Option(help="seed of the path tracer's sampler")] = 0,
+    variant: VariantOpt = None,
+) -> None:
+    """Knit the yarn into a patch of stitches (ipm/knit.py: Omega loops after Peirce, the
+    yarn swept along them) and render it in the scene's lights; writes ``<out>.json``
+    beside the image with everything needed to render it again."""
+    from ipm.io import write_text
+    from ipm.knit import faces, knit_patch
+    from ipm.render.patch import patch_frame, render_patch
+    from ipm.render.renderer import Renderer, save_png
+
+    p = _yarn_of(params)
+    wales, courses = _stitches(stitches)
+    faces(pattern, 1, 1)  # an unknown pattern fails before any work
+    try:
+        width, height = (int(v) for v in size.lower().split("x"))
+    except ValueError:
+        raise UserError(f"--size {size!r}: expected WIDTHxHEIGHT, e.g. 1000x1000") from None
+    if not (16 <= width <= 8000 and 16 <= height <= 8000):
+        raise UserError(f"--size {size!r}: each side must be in 16-8000 px")
+    check_output(out)
+    check_not_inputs([out, out.with_suffix(".json")], [params])
+    patch = knit_patch(p, pattern, wales, courses, seed)
+    frame = patch_frame(patch, width, height)
+    renderer = Renderer(variant)
+    image = render_patch(renderer, patch, p.color, frame, spp, render_seed)
+    save_png(out, image)
+    record = {"params": p.to_dict(), "pattern": pattern, "stitches": [wales, courses],
+              "seed": seed, "render_seed": render_seed, "spp": spp, "width": width,
+              "height": height, "pixel_size_mm": frame.pixel_size_mm,
+              "yarn_diameter_mm": patch.diameter, "variant": renderer.variant,
+              "scene": renderer.settings(1.0, spp, render_seed)["scene"]}
+    write_text(out.with_suffix(".json"), json.dumps(record, indent=2) + "\n")
+    typer.echo(f"{pattern} {wales}x{courses}, {patch.fibers.num_fibers} fibers, "
+               f"{width}x{height} px at {frame.pixel_size_mm:.4g} mm/px -> {out}", err=True)
+
+
+def _yarn_of(path: Path):
+    """Yarn parameters from a JSON file: flat (``ipm sample``), a render sidecar
+    (``params``) or a fit's ``params.json`` (its ``refined`` yarn, else ``neural``)."""
+    from ipm.params import YarnParams
+
+    try:
+        d = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise UserError(f"{path}: cannot read parameters ({e})") from None
+    for key in ("refined", "neural", "params"):
+        if isinstance(d, dict) and isinstance(d.get(key), dict):
+            d = d[key]
+            break
+    try:
+        return YarnParams.from_dict(d)
+    except UserError as e:
+        raise UserError(f"{path}: {e}") from None
+
+
 def doctor() -> None:
     """Report what rendering and training need (Mitsuba variants, libLLVM, torch device,
     threads) and how to fix what is missing."""

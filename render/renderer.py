@@ -23,6 +23,7 @@ from ipm.photo import linear_to_srgb, srgb_to_linear, write_png
 from ipm.render.photometric import NOMINAL, Photometric, apply_to_image
 from ipm.render.scene import (
     DEFAULT_OPTIONS,
+    Frame,
     SceneOptions,
     frame_size,
     pixel_size_mm,
@@ -76,7 +77,7 @@ class Renderer:
                 "variant": self.variant, "scene": asdict(self.options)}
 
     def _load(self, scale: float, curve_text: str, color: tuple[float, float, float],
-              to_world: np.ndarray | None = None) -> object:
+              to_world: np.ndarray | None = None, frame: Frame | None = None) -> object:
         with tempfile.TemporaryDirectory(prefix="ipm-scene-") as tmp:
             curves = Path(tmp, "curves.txt")
             curves.write_text(curve_text)
@@ -86,13 +87,14 @@ class Renderer:
             # random numbers to the other lamp: about one process in eight rendered every
             # image with other noise (benchmarks/determinism.py)
             return self.mi.load_dict(scene_dict(scale, 1, str(curves), color, self.options,
-                                                to_world), parallel=False, optimize=False)
+                                                to_world, frame), parallel=False, optimize=False)
 
-    def _scene(self, scale: float) -> tuple[object, object]:
-        if scale not in self._scenes:
-            scene = self._load(scale, _PLACEHOLDER_CURVE, (0.5, 0.5, 0.5))
-            self._scenes[scale] = (scene, self.mi.traverse(scene))
-        return self._scenes[scale]
+    def _scene(self, scale: float, frame: Frame | None = None) -> tuple[object, object]:
+        key = (scale, frame)
+        if key not in self._scenes:
+            scene = self._load(scale, _PLACEHOLDER_CURVE, (0.5, 0.5, 0.5), frame=frame)
+            self._scenes[key] = (scene, self.mi.traverse(scene))
+        return self._scenes[key]
 
     def sample_count(self, scale: float, spp: int) -> int:
         """The samples per pixel the scene's sampler takes when asked for ``spp``: multijitter
@@ -109,19 +111,20 @@ class Renderer:
         return int(sampler.sample_count())
 
     def render_fibers(self, fibers: FiberSet, color: tuple[float, float, float], scale: float,
-                      spp: int, render_seed: int = 0, to_world: np.ndarray | None = None
-                      ) -> np.ndarray:
+                      spp: int, render_seed: int = 0, to_world: np.ndarray | None = None,
+                      frame: Frame | None = None) -> np.ndarray:
         """Linear RGB image (H, W, 3) float32 of ``fibers`` (generator frame) with albedo
-        ``color``, placed by ``to_world`` (default: :func:`yarn_to_world` centred)."""
+        ``color``, placed by ``to_world`` (default: :func:`yarn_to_world` centred), in the
+        yarn frame at ``scale`` or in ``frame``."""
         if spp < 1:
             raise ValueError(f"spp must be >= 1, got {spp}")
         frame_size(scale)  # validates the scale
         to_world = yarn_to_world() if to_world is None else to_world
         if self.variant.startswith("scalar"):
             # no kernels to keep, and scalar buffers cannot change size: load the yarn anew
-            scene = self._load(scale, fibers.mitsuba_curve_text(), color, to_world)
+            scene = self._load(scale, fibers.mitsuba_curve_text(), color, to_world, frame)
         else:
-            scene, params = self._scene(scale)
+            scene, params = self._scene(scale, frame)
             points, segments = world_curves(fibers, to_world)
             params["yarn.control_points"] = self.mi.Float(points.ravel())
             params["yarn.segment_indices"] = self.mi.UInt32(segments)

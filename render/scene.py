@@ -120,6 +120,16 @@ class SceneOptions:
 DEFAULT_OPTIONS = SceneOptions()
 
 
+@dataclass(frozen=True)
+class Frame:
+    """A view other than the yarn frame (a knitted patch): ``width`` x ``height`` pixels of
+    ``pixel_size_mm`` each, centred on the world origin; camera, lights and card as ever."""
+
+    width: int
+    height: int
+    pixel_size_mm: float
+
+
 def frame_size(scale: float) -> tuple[int, int]:
     """(width, height) in pixels of the frame at ``scale`` (1 = 2000 x 600)."""
     if not 0.05 <= scale <= 2:
@@ -177,19 +187,24 @@ def integrator_dict(mi: ModuleType, opts: SceneOptions) -> dict[str, Any]:
 
 def scene_dict(scale: float, spp: int, curves: str, color: tuple[float, float, float],
                opts: SceneOptions = DEFAULT_OPTIONS,
-               to_world: np.ndarray | None = None) -> dict[str, Any]:
+               to_world: np.ndarray | None = None, frame: Frame | None = None
+               ) -> dict[str, Any]:
     """The scene for :func:`mi.load_dict`, rendering at ``scale`` x (2000 x 600) px.
 
     curves: a Mitsuba ``linearcurve`` file (``x y z radius`` in generator coordinates, see
     :meth:`ipm.FiberSet.save_mitsuba`); the shape's id is ``yarn`` so that
     ``yarn.control_points`` (world space) can be swapped through ``mi.traverse``.
     color: linear RGB albedo of the fibers.  to_world: (4, 4) from :func:`yarn_to_world`.
+    frame: another view than the yarn frame at ``scale`` (a knitted patch).
     Needs the Mitsuba variant set (:func:`ipm.render.variant.mitsuba`).
     """
     import mitsuba as mi
 
-    width, height = frame_size(scale)
-    half_width = width * pixel_size_mm(scale) / 2
+    if frame is None:
+        width, height = frame_size(scale)
+        half_width = width * pixel_size_mm(scale) / 2
+    else:
+        width, height, half_width = frame.width, frame.height, frame.width * frame.pixel_size_mm / 2
     T = mi.ScalarTransform4f
     camera = (T().look_at(origin=[0, 0, CAMERA_DISTANCE_MM], target=[0, 0, 0], up=[0, 1, 0])
               @ T().scale([half_width, half_width, 1]))

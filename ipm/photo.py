@@ -17,6 +17,7 @@ from __future__ import annotations
 import os
 import warnings
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -86,6 +87,43 @@ def _to_rgb_float(im: Image.Image) -> np.ndarray:
     return np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
 
 
+#: A photo resampled to the scene's pitch may hold this many pixels (a 0.6 GB float image);
+#: more means a pixel size typed in the wrong unit, refused before any allocation.
+MAX_RESAMPLED_PIXELS = 50_000_000
+#: What a macro or microscope photo of a yarn has per pixel (mm), for the messages.
+PLAUSIBLE_PIXEL_MM = (0.001, 0.1)
+
+
+def pixel_size_of(path: str | os.PathLike, pixel_size_mm: float | None = None,
+                  calibration: str | os.PathLike | None = None) -> float:
+    """A photo's pixel size (mm): ``--pixel-size``, else the calibration file's (``ipm
+    calibrate``), else the ``pixel_size_mm`` of the ipm sidecar beside it (``<photo>.json``
+    of ``ipm render``); without any of them a one-line :class:`UserError`, since every
+    length ipm reports follows from it."""
+    import json
+
+    if pixel_size_mm is not None and calibration is not None:
+        raise UserError("give --pixel-size or --calibration, not both")
+    if pixel_size_mm is not None:
+        if not (np.isfinite(pixel_size_mm) and pixel_size_mm > 0):
+            raise UserError(f"pixel size must be a positive number of mm, got {pixel_size_mm}")
+        return float(pixel_size_mm)
+    if calibration is not None:
+        from ipm.calibrate import Calibration
+
+        return Calibration.load(calibration).pixel_size_mm
+    sidecar = Path(path).with_suffix(".json")
+    try:
+        value = float(json.loads(sidecar.read_text(encoding="utf-8"))["pixel_size_mm"])
+        if np.isfinite(value) and value > 0:
+            return value
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    raise UserError(f"{os.fspath(path)}: its pixel size is unknown; give --pixel-size MM, or "
+                    "--calibration FILE from `ipm calibrate ruler.png -o FILE` (a photo of "
+                    "a millimetre scale taken with the same setup)")
+
+
 def pitch_factor(pixel_size_mm: float, scale: float = 1.0) -> float:
     """How many scene pixels at ``scale`` one photo pixel of ``pixel_size_mm`` covers (> 1:
     the photo is upsampled to reach the scene's pitch)."""
@@ -107,6 +145,11 @@ def to_scene_pitch(img: np.ndarray, pixel_size_mm: float, scale: float = 1.0) ->
     factor = pitch_factor(pixel_size_mm, scale)
     h, w = img.shape[:2]
     size = (max(1, round(w * factor)), max(1, round(h * factor)))
+    if size[0] * size[1] > MAX_RESAMPLED_PIXELS:
+        raise UserError(f"at {pixel_size_mm:g} mm per pixel this {w}x{h} px photo spans "
+                        f"{w * pixel_size_mm:g} x {h * pixel_size_mm:g} mm, {size[0]}x{size[1]} "
+                        f"px at the scene's pitch: is the pixel size in mm? (a yarn photo's "
+                        f"is about {PLAUSIBLE_PIXEL_MM[0]:g}-{PLAUSIBLE_PIXEL_MM[1]:g} mm)")
     if size == (w, h):
         return img.astype(np.float32, copy=False)
     resample = Image.Resampling.BOX if factor < 1 else Image.Resampling.BICUBIC

@@ -34,12 +34,18 @@ def fit(
                                          "guess by render-and-compare: searches the ply "
                                          "twist alpha_ply (measured in docs/compare)")]
     = False,
-    pixel_size: Annotated[float, typer.Option(help="mm per photo pixel at the yarn (the "
-                                              "scene's is 0.01)")] = PIXEL_SIZE_MM,
+    pixel_size: Annotated[float | None, typer.Option(help="mm per photo pixel at the yarn; "
+                                                     "default: --calibration, or the ipm "
+                                                     "sidecar <photo>.json")] = None,
+    calibration: Annotated[Path | None, typer.Option(help="pixel size from `ipm calibrate "
+                                                     "ruler.png -o FILE`")] = None,
     models: Annotated[Path | None, typer.Option(help="trained ensemble folder (default: the "
                                                 "models shipped with ipm)")] = None,
     budget: Annotated[int, typer.Option(help="objective evaluations of the search")]
     = _DEFAULT.budget,
+    knit: Annotated[str | None, typer.Option(help="also knit the fitted yarn into a patch "
+                                             "of this pattern (knit, purl, garter, rib): "
+                                             "knit.png, and a panel of compare.png")] = None,
     time_limit: Annotated[float | None, typer.Option("--time", help="wall-time bound of the "
                                                      "search, seconds")] = None,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = _DEFAULT.algorithm,
@@ -56,7 +62,7 @@ def fit(
     losses, the settings), neural.png, refined.png and compare.png (photo | neural |
     refined)."""
     from ipm.io import write_text
-    from ipm.photo import Photo, write_png
+    from ipm.photo import Photo, pixel_size_of, write_png
     from ipm.refine.fit import FitOptions, compare_image, display_renders, fit
     from ipm.render.renderer import Renderer
 
@@ -64,7 +70,12 @@ def fit(
                                               algorithm=algorithm, budget=budget,
                                               time_s=time_limit))
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
-                                         "params.json")], [photo])
+                                         "params.json", "knit.png", "knit.json")], [photo])
+    if knit is not None:
+        from ipm.knit import faces
+
+        faces(knit, 1, 1)  # an unknown pattern fails before any work
+    pixel_size = pixel_size_of(photo, pixel_size, calibration)
     shot = Photo.read(photo, pixel_size)
     if invert:
         shot = shot.inverted()
@@ -92,10 +103,33 @@ def fit(
         panels.append(refined_img)
         labels.append(f"refined  loss {result.loss_refined:.4f}"
                       + ("" if result.improved else "  (no improvement: neural kept)"))
+    if knit is not None:
+        panels.append(_knit_panel(renderer, result.refined if refine else result.neural, knit,
+                                  panels[0].shape[1], out))
+        labels.append(f"{knit} patch of the {'refined' if refine else 'neural'} yarn")
     write_png(out / "compare.png", compare_image(panels, labels))
     write_text(out / "params.json", json.dumps(result.to_dict(options, pixel_size), indent=2))
     typer.echo(f"loss neural {result.loss_neural:.4f} -> refined {result.loss_refined:.4f} "
                f"({result.seconds:.0f} s); wrote {out}/params.json, compare.png", err=True)
+
+
+def _knit_panel(renderer, params, pattern: str, width: int, out: Path):
+    """Knit ``params`` into an 8 x 6 patch ``width`` px wide and half as high; writes
+    knit.png and its sidecar knit.json into ``out`` and returns the image."""
+    from ipm.io import write_text
+    from ipm.knit import knit_patch
+    from ipm.photo import linear_to_srgb, write_png
+    from ipm.render.patch import patch_frame, render_patch
+
+    patch = knit_patch(params, pattern, 8, 6, seed=0)
+    frame = patch_frame(patch, width, width // 2)
+    image = linear_to_srgb(render_patch(renderer, patch, params.color, frame, spp=16))
+    write_png(out / "knit.png", image)
+    write_text(out / "knit.json", json.dumps({
+        "params": params.to_dict(), "pattern": pattern, "stitches": [8, 6], "seed": 0,
+        "render_seed": 0, "spp": 16, "width": frame.width, "height": frame.height,
+        "pixel_size_mm": frame.pixel_size_mm}, indent=2))
+    return image
 
 
 def compare(

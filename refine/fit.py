@@ -178,16 +178,19 @@ def display_renders(renderer, photo: Photo, result: FitResult, options: FitOptio
 
 
 def compare_image(panels: list[np.ndarray], labels: list[str]) -> np.ndarray:
-    """Panels stacked top to bottom (the yarn is wide), each with its label underneath;
-    (H, W, 3) uint8."""
+    """sRGB panels of one width stacked top to bottom (the yarn is wide), each with its label
+    underneath; (H, W, 3) uint8."""
     from PIL import Image, ImageDraw
 
-    h, w = panels[0].shape[:2]
+    w = panels[0].shape[1]
     bar = 18
-    out = Image.new("RGB", (w, len(panels) * (h + bar)), (255, 255, 255))
+    out = Image.new("RGB", (w, sum(p.shape[0] + bar for p in panels)), (255, 255, 255))
     draw = ImageDraw.Draw(out)
-    for i, (img, label) in enumerate(zip(panels, labels, strict=True)):
+    top = 0
+    for img, label in zip(panels, labels, strict=True):
         out.paste(Image.fromarray((np.clip(img, 0, 1) * 255).round().astype(np.uint8)),
-                  (0, i * (h + bar)))
-        draw.text((4, i * (h + bar) + h + 3), label, fill=(0, 0, 0))
+                  (0, top))
+        top += img.shape[0]
+        draw.text((4, top + 3), label, fill=(0, 0, 0))
+        top += bar
     return np.asarray(out)

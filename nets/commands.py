@@ -116,11 +116,13 @@ def predict(
     if not single:
         prepare_folder(out)
     ensemble = _load(cfg.models, cfg.device)
-    if w := ensemble.upsampling_warning(cfg.pixel_size):
-        typer.echo(f"warning: {w}", err=True)
+    warning = ensemble.upsampling_warning(cfg.pixel_size)
     for file, target in zip(cfg.photos, targets, strict=True):
         shot = Photo.read(file, cfg.pixel_size)
         params = ensemble.predict(shot.inverted() if cfg.invert else shot, cfg.crops)
+        if warning:  # after the first photo: a pixel size that fails it needs no warning
+            typer.echo(f"warning: {warning}", err=True)
+            warning = None
         if single:
             typer.echo(params.to_json())
         else:

@@ -1,0 +1,95 @@
+"""The commands that use a fitted yarn and set a photo's scale (ipm edit, knit, curves
+--format usd|ply, calibrate, and fit's pixel size), as a user runs them, bad input included:
+one line, exit 2, no output file."""
+
+import json
+import resource
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def ipm(*args):
+    return subprocess.run([sys.executable, "-m", "ipm", *map(str, args)], capture_output=True,
+                          text=True)
+
+
+def one_line_error(r, words):
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], r.stderr
+
+
+@pytest.fixture
+def golden(tmp_path):
+    assert ipm("sample", "--preset", "golden", "-o", tmp_path / "p.json").returncode == 0
+    return tmp_path / "p.json"
+
+
+def test_edit_sets_and_scales(golden, tmp_path):
+    r = ipm("edit", golden, "--set", "alpha_ply=*0.5", "--set", "g=*2", "-o", tmp_path / "e.json")
+    assert r.returncode == 0, r.stderr
+    before, after = json.loads(golden.read_text()), json.loads((tmp_path / "e.json").read_text())
+    assert after["alpha_ply"] == pytest.approx(before["alpha_ply"] / 2)
+    assert after["g"] == 2 * before["g"]
+
+
+@pytest.mark.parametrize("args, words", [
+    (("--set", "twist=2"), "unknown parameter 'twist'"),
+    (("--set", "alpha_ply=*100"), "outside its allowed range"),
+    (("--set", "g=abc"), "not a number")])
+def test_edit_bad_input(golden, tmp_path, args, words):
+    one_line_error(ipm("edit", golden, *args, "-o", tmp_path / "e.json"), words)
+    assert not (tmp_path / "e.json").exists()
+
+
+@pytest.mark.parametrize("args, words", [
+    (("--pattern", "moss"), "unknown pattern 'moss'"), (("--stitches", "8by6"), "WALESxCOURSES"),
+    (("--stitches", "0x6"), "must be in 1-40"), (("--size", "10x10"), "16-8000 px")])
+def test_knit_bad_input(golden, tmp_path, args, words):
+    one_line_error(ipm("knit", golden, "-o", tmp_path / "k.png", *args), words)
+    assert not (tmp_path / "k.png").exists() and not (tmp_path / "k.json").exists()
+
+
+@pytest.mark.parametrize("fmt, name", [("usd", "y.usda"), ("ply", "y.ply")])
+def test_curves_exports(golden, tmp_path, fmt, name):
+    r = ipm("curves", golden, "-o", tmp_path / name, "--format", fmt)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / name).stat().st_size > 1000
+
+
+def test_calibrate_the_bundled_ruler(tmp_path):
+    r = ipm("calibrate", ROOT / "examples" / "ruler.png", "-o", tmp_path / "c.json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "c.json").read_text())["pixel_size_mm"] == \
+        pytest.approx(0.0125, rel=0.005)
+
+
+def test_calibrate_refuses_an_image_without_a_scale(tmp_path):
+    one_line_error(ipm("calibrate", ROOT / "examples" / "golden.png", "-o", tmp_path / "c.json"),
+                   "no millimetre scale found")
+    assert not (tmp_path / "c.json").exists()
+
+
+def test_fit_needs_a_pixel_size(tmp_path):
+    photo = tmp_path / "yarn.png"
+    shutil.copy(ROOT / "examples" / "golden.png", photo)  # without its sidecar
+    one_line_error(ipm("fit", photo, "--out", tmp_path / "fit"), "pixel size is unknown")
+    assert not (tmp_path / "fit").exists()
+    (tmp_path / "bad.json").write_text("{}")
+    one_line_error(ipm("fit", photo, "--calibration", tmp_path / "bad.json", "--out",
+                       tmp_path / "fit"), "not an ipm calibration file")
+
+
+def test_a_pixel_size_in_the_wrong_unit_is_refused_before_any_allocation():
+    """8.5 (micrometres typed as mm) would resample the bundled photo to gigapixels."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    r = ipm("predict", ROOT / "examples" / "golden.png", "--pixel-size", "8.5")
+    one_line_error(r, "is the pixel size in mm?")
+    peak_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    assert max(before, peak_kb) < 1_000_000  # KiB: the refused call stays under 1 GB

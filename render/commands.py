@@ -237,4 +237,6 @@ def generate(
 
         records = generate_dataset(out, opts, workers=workers, variant=variant,
                                    progress=progress, ray=ray)
-    typer.echo(f"{len(records)} samples in {out}", err=True)
+    extra = sum(r.index >= count for r in records)
+    typer.echo(f"{len(records)} samples in {out}" + (f" ({extra} beyond --count {count}, from "
+               "an earlier run, kept)" if extra else ""), err=True)

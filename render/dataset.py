@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import zlib
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -156,10 +157,38 @@ def image_name(index: int) -> str:
 _renderer = None
 
 
+def _die_with_parent() -> None:
+    """End this worker when the process that started it ends, even by SIGKILL: Linux's
+    parent-death signal where there is one, and everywhere a thread that watches the parent
+    (a worker of a killed ``ipm generate`` would otherwise render on, orphaned)."""
+    import signal
+    import threading
+    import time
+
+    parent = os.getppid()
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:  # the parent died before the signal was set
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True, name="parent-watch").start()
+
+
 def _init_worker(variant: str | None, scene: SceneOptions, threads: int) -> None:
     global _renderer
     from ipm.render.renderer import Renderer
 
+    _die_with_parent()
     _renderer = Renderer(variant, scene, threads=threads)
 
 
@@ -184,8 +213,9 @@ def make_sample(folder: str, opts: GenerateOptions, index: int) -> Record:
 
 # -- folder state ----------------------------------------------------------------------------
 def _prepare(folder: Path, opts: GenerateOptions) -> dict[int, Record]:
-    """Check or create the folder and return the valid samples already there (index < count);
-    rewrites the manifest without torn or duplicate lines."""
+    """Check or create the folder and return the valid samples already there; rewrites the
+    manifest without torn or duplicate lines.  Samples beyond ``opts.count`` (an earlier,
+    larger run) are kept: a rerun with a smaller count never deletes what was made."""
     if folder.exists() and not folder.is_dir():
         raise UserError(f"{folder} exists and is not a folder")
     parent = folder.parent
@@ -216,7 +246,7 @@ def _prepare(folder: Path, opts: GenerateOptions) -> dict[int, Record]:
     done: dict[int, Record] = {}
     if (folder / MANIFEST).is_file():  # the samples whose image was written
         done = {r.index: r for r in read_manifest(folder, allow_empty=True)
-                if r.index < opts.count and r.image.is_file()}
+                if r.image.is_file()}
     write_manifest(folder, list(done.values()))
     return done
 
@@ -279,7 +309,7 @@ def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: 
     done = _prepare(folder, opts)
     todo = [i for i in range(opts.count) if i not in done]
     if progress:
-        progress(len(done), opts.count)
+        progress(opts.count - len(todo), opts.count)
     if todo:
         pool = None
         if ray is None:  # spawn, not fork: Dr.Jit's threads do not survive a fork
@@ -287,6 +317,7 @@ def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: 
                                        initializer=_init_worker,
                                        initargs=(variant, opts.scene, max(1, cores // workers)))
         try:
+            made = 0
             with open(folder / MANIFEST, "a", encoding="utf-8") as manifest:
                 pending = ({pool.submit(make_sample, str(folder), opts, i) for i in todo}
                            if pool else _ray_submit(ray, folder, opts, todo, workers, variant))
@@ -297,8 +328,9 @@ def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: 
                         manifest.write(manifest_line(folder, rec))
                         manifest.flush()
                         done[rec.index] = rec
+                        made += 1
                     if progress:
-                        progress(len(done), opts.count)
+                        progress(opts.count - len(todo) + made, opts.count)
         finally:
             if pool:
                 pool.shutdown(cancel_futures=True)

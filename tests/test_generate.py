@@ -219,3 +219,35 @@ def test_ray_without_a_cluster_is_a_clear_error(tmp_path, monkeypatch):
     r = ipm("generate", "--out", tmp_path / "ds", "--count", 2, *TINY, "--ray", "auto")
     assert r.returncode == 2 and "error: cannot reach a Ray cluster at 'auto'" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_a_smaller_count_keeps_what_was_made(tmp_path):
+    out = tmp_path / "ds"
+    assert ipm("generate", "--count", 3, "--out", out, "--workers", 1, *TINY).returncode == 0
+    r = ipm("generate", "--count", 2, "--out", out, "--workers", 1, *TINY)
+    assert r.returncode == 0, r.stderr
+    assert "1 beyond --count 2" in r.stderr
+    assert [rec.index for rec in read_manifest(out)] == [0, 1, 2]
+
+
+def test_workers_of_a_killed_generate_end_with_it(tmp_path):
+    """SIGKILL to the command alone (not its process group): its render workers must not
+    render on as orphans."""
+    proc = subprocess.Popen(ipm_args("generate", "--count", 200, "--out", tmp_path / "ds",
+                                     "--workers", 2, *TINY),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        manifest = tmp_path / "ds" / MANIFEST
+        if manifest.is_file() and manifest.read_text().strip():
+            break
+        time.sleep(0.05)
+    children = subprocess.run(["ps", "--ppid", str(proc.pid), "-o", "pid="],
+                              capture_output=True, text=True).stdout.split()
+    assert len(children) >= 2, "no workers seen"
+    proc.kill()
+    proc.wait()
+    time.sleep(10)
+    alive = [pid for pid in children if os.path.exists(f"/proc/{pid}")
+             and "zombie" not in open(f"/proc/{pid}/status").read().lower()]
+    assert not alive, f"workers still running: {alive}"

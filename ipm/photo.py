@@ -158,6 +158,28 @@ def to_scene_pitch(img: np.ndarray, pixel_size_mm: float, scale: float = 1.0) ->
     return np.clip(np.stack(chans, axis=2), 0, 1).astype(np.float32)
 
 
+#: Below this contrast (the largest range of the row or column medians of the difference
+#: from the border's level) a photo shows no yarn: a blank, a uniform or a noise image.
+NO_YARN_CONTRAST = 0.02
+
+
+def yarn_layout(gray: np.ndarray) -> tuple[float, float]:
+    """(contrast, orientation score) of a grayscale photo.  Contrast: see
+    :data:`NO_YARN_CONTRAST`.  Score > 0 for a yarn running horizontally, < 0 vertically:
+    the log of three ratios that a horizontal yarn makes large, each measured on its own
+    rows and columns: vertical over horizontal gradient energy (a yarn's edges and fibers
+    run along it), the range of the row medians over that of the column medians (a band
+    across the frame), and width over height."""
+    gy, gx = np.gradient(gray.astype(np.float64))
+    border = np.concatenate([gray[0], gray[-1], gray[:, 0], gray[:, -1]])
+    c = np.abs(gray - np.median(border))
+    rows, cols = np.ptp(np.median(c, axis=1)), np.ptp(np.median(c, axis=0))
+    eps = 1e-9
+    score = (np.log(((gy ** 2).sum() + eps) / ((gx ** 2).sum() + eps))
+             + np.log((rows + eps) / (cols + eps)) + np.log(gray.shape[1] / gray.shape[0]))
+    return float(max(rows, cols)), float(score)
+
+
 @dataclass(frozen=True)
 class Photo:
     """A yarn photo: ``image`` (H, W, 3) float32 sRGB in [0, 1], ``pixel_size_mm`` (one
@@ -197,6 +219,19 @@ class Photo:
                             f"least {need_w}x{need_h} px ({min_size[1] * PIXEL_SIZE_MM / scale:g}"
                             f" x {min_size[0] * PIXEL_SIZE_MM / scale:g} mm of yarn)")
         return img
+
+    def upright(self) -> tuple[Photo, str | None]:
+        """The photo with its yarn horizontal, as the nets and the scene see it, and a note
+        when it had to be turned (:func:`yarn_layout`); a photo with no yarn in it is a
+        one-line :class:`UserError`."""
+        contrast, score = yarn_layout(self.image.mean(axis=2))
+        if contrast < NO_YARN_CONTRAST:
+            raise UserError(f"{self.name}: no yarn found (the image is nearly uniform: contrast "
+                            f"{contrast:.3f}, a yarn gives {NO_YARN_CONTRAST} or more)")
+        if score < 0:
+            return (replace(self, image=np.ascontiguousarray(np.rot90(self.image))),
+                    f"{self.name}: the yarn runs vertically; turned by 90 degrees")
+        return self, None
 
     def inverted(self) -> Photo:
         """The negative: a backlit capture (dark yarn on a light background) made to look

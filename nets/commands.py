@@ -118,7 +118,9 @@ def predict(
     ensemble = _load(cfg.models, cfg.device)
     warning = ensemble.upsampling_warning(cfg.pixel_size)
     for file, target in zip(cfg.photos, targets, strict=True):
-        shot = Photo.read(file, cfg.pixel_size)
+        shot, note = Photo.read(file, cfg.pixel_size).upright()
+        if note:
+            typer.echo(f"note: {note}", err=True)
         params = ensemble.predict(shot.inverted() if cfg.invert else shot, cfg.crops)
         if warning:  # after the first photo: a pixel size that fails it needs no warning
             typer.echo(f"warning: {warning}", err=True)

@@ -76,7 +76,9 @@ def fit(
 
         faces(knit, 1, 1)  # an unknown pattern fails before any work
     pixel_size = pixel_size_of(photo, pixel_size, calibration)
-    shot = Photo.read(photo, pixel_size)
+    shot, note = Photo.read(photo, pixel_size).upright()
+    if note:
+        typer.echo(f"note: {note}", err=True)
     if invert:
         shot = shot.inverted()
     prepare_folder(out)

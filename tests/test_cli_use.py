@@ -93,3 +93,31 @@ def test_a_pixel_size_in_the_wrong_unit_is_refused_before_any_allocation():
     one_line_error(r, "is the pixel size in mm?")
     peak_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     assert max(before, peak_kb) < 1_000_000  # KiB: the refused call stays under 1 GB
+
+
+def test_photos_without_a_yarn_are_refused(tmp_path):
+    from PIL import Image
+
+    Image.new("RGB", (1000, 300), (128, 128, 128)).save(tmp_path / "grey.png")
+    Image.new("RGBA", (1000, 300), (200, 150, 40, 0)).save(tmp_path / "clear.png")
+    for name in ("grey.png", "clear.png"):
+        one_line_error(ipm("predict", tmp_path / name, "--pixel-size", "0.02"), "no yarn found")
+
+
+def test_a_vertical_yarn_is_turned(tmp_path):
+    """The bundled photo turned upright and padded to a square: the same yarn, said so."""
+    import numpy as np
+    from PIL import Image
+
+    img = np.asarray(Image.open(ROOT / "examples" / "golden.png").convert("RGB"))
+    upright = np.ascontiguousarray(np.rot90(img, -1))  # 300 x 1000 -> 1000 x 300, vertical
+    square = np.empty((1000, 1000, 3), np.uint8)
+    square[:] = np.median(img[0], axis=0)
+    square[:, 350:650] = upright
+    Image.fromarray(square).save(tmp_path / "vertical.png")
+    r = ipm("predict", tmp_path / "vertical.png", "--pixel-size", "0.02")
+    assert r.returncode == 0 and "turned by 90 degrees" in r.stderr, r.stderr
+    h = ipm("predict", ROOT / "examples" / "golden.png", "--pixel-size", "0.02")
+    turned, straight = json.loads(r.stdout), json.loads(h.stdout)
+    assert turned["n"] == straight["n"]
+    assert turned["R_ply"] == pytest.approx(straight["R_ply"], rel=0.15)

@@ -168,12 +168,30 @@ from ipm.benchmarks import commands as bench_commands  # noqa: E402
 app.command("bench")(bench_commands.bench)
 
 
+class Interrupted(Exception):
+    """Ctrl-C, raised from the SIGINT handler: not a KeyboardInterrupt, which the command
+    line library would turn into a silent exit."""
+
+
 def main() -> None:
+    """Run the command line: a :class:`UserError` is one line and exit 2, Ctrl-C one line and
+    exit 130 (what was written stays: every output is written atomically)."""
+    import signal
+    import warnings
+
+    def interrupt(*_args) -> None:
+        raise Interrupted
+
+    def one_line(message, *_args, **_kwargs) -> None:
+        typer.echo(f"warning: {message}", err=True)
+
+    signal.signal(signal.SIGINT, interrupt)
+    warnings.showwarning = one_line
     try:
         app()
     except UserError as e:
         typer.echo(f"error: {e}", err=True)
         sys.exit(2)
-    except KeyboardInterrupt:
-        typer.echo("interrupted", err=True)
+    except (Interrupted, KeyboardInterrupt):
+        typer.echo("interrupted; the files written so far are complete and kept", err=True)
         sys.exit(130)

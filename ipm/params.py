@@ -207,6 +207,11 @@ class YarnParams:
         missing = [k for k in PARAM_ORDER if k not in d]
         if missing:
             raise ParamError(f"missing parameter(s): {', '.join(missing)}")
+        unknown = sorted(k for k in d if k not in known)
+        if unknown:
+            import warnings
+
+            warnings.warn(f"ignored unknown parameter(s): {', '.join(unknown)}", stacklevel=2)
         return cls(**{k: v for k, v in d.items() if k in known})
 
     @classmethod

@@ -61,10 +61,8 @@ def fit(
     render-and-compare search; writes params.json (neural and refined parameters, their
     losses, the settings), neural.png, refined.png and compare.png (photo | neural |
     refined)."""
-    from ipm.io import write_text
-    from ipm.photo import Photo, pixel_size_of, write_png
-    from ipm.refine.fit import FitOptions, compare_image, display_renders, fit
-    from ipm.render.renderer import Renderer
+    from ipm.photo import Photo, pixel_size_of
+    from ipm.refine.fit import FitOptions
 
     options = FitOptions(search=SearchOptions(params=_search_params(params),
                                               algorithm=algorithm, budget=budget,
@@ -81,7 +79,26 @@ def fit(
         typer.echo(f"note: {note}", err=True)
     if invert:
         shot = shot.inverted()
+    made_folder = not out.exists()
     prepare_folder(out)
+    try:
+        _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prior, variant)
+    except BaseException:
+        if made_folder and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()  # a late error leaves no empty folder behind
+        raise
+
+
+def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prior,
+              variant) -> None:
+    """The body of ``ipm fit`` once the photo is read and the folder made."""
+    from ipm.io import write_text
+    from ipm.photo import write_png
+    from ipm.refine.fit import compare_image, display_renders, fit
+    from ipm.render.renderer import Renderer
+
+    for stale in ([] if refine else ["refined.png"]) + ([] if knit else ["knit.png", "knit.json"]):
+        (out / stale).unlink(missing_ok=True)  # from an earlier fit into the same folder
     from ipm.nets.ensemble import Ensemble
 
     ensemble = Ensemble.load(models)
@@ -193,5 +210,7 @@ def compare(
     for k, v in s["params"].items():
         typer.echo(f"{k:10s} MAE neural {v['neural']:.4g} -> refined {v['refined']:.4g} "
                    f"({v['change_pct']:+.0f}%)", err=True)
+    for r in s["failed"]:
+        typer.echo(f"warning: not fitted: {r['error']}", err=True)
     typer.echo(f"{s['improved']}/{s['count']} photos improved; wrote {out}/index.md, "
                "results.csv, compare.png", err=True)

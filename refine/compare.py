@@ -86,8 +86,9 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
     """Fit every photo, resuming from the rows already in the JSON-lines file ``path``.
 
     ``neural_of(i, photo)`` gives the nets' parameters of photo ``i``.  A row is appended
-    (and flushed) as each fit ends; a line torn by a kill, and any row that does not belong
-    to the photo at its place, is dropped and that photo fitted again."""
+    (and flushed) as each fit ends; a photo that cannot be read or used gets a row with its
+    ``error`` instead, and the others go on.  A line torn by a kill, and any row that does
+    not belong to the photo at its place, is dropped and that photo fitted again."""
     from ipm.render.renderer import Renderer
 
     done: list[dict] = []
@@ -105,9 +106,14 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
     renderer = None
     with open(path, "a", encoding="utf-8") as f:
         for i in range(len(done), len(photos)):
-            photo = prep.load(photos[i])
-            renderer = renderer or Renderer()
-            row = fit_row(photos[i], photo, neural_of(i, photo), renderer, options, sigma)
+            try:
+                photo = prep.load(photos[i])
+                neural = neural_of(i, photo)
+            except UserError as e:  # an unreadable or unusable photo: say so, go on
+                row = {"image": str(photos[i].image), "error": str(e)}
+            else:
+                renderer = renderer or Renderer()
+                row = fit_row(photos[i], photo, neural, renderer, options, sigma)
             f.write(json.dumps(row) + "\n")
             f.flush()
             done.append(row)
@@ -172,6 +178,9 @@ def markdown(s: dict, rows: list[dict], command: str, figure: str | None) -> str
     lines += ["| photo | loss neural | loss refined | improved |", "|---|---|---|---|"]
     lines += [f"| {Path(r['image']).name} | {r['loss_neural']:.4f} | {r['loss_refined']:.4f} "
               f"| {'yes' if r['improved'] else 'no'} |" for r in rows]
+    if s.get("failed"):
+        lines += ["", "Not fitted:", ""] + [f"- {Path(r['image']).name}: {r['error']}"
+                                            for r in s["failed"]]
     if figure:
         lines += ["", f"![photo, neural, refined]({figure})"]
     return "\n".join(lines) + "\n"
@@ -206,10 +215,13 @@ def compare(photos: Sequence[Record], out: Path, ensemble, options, prior: bool 
     report; returns the summary."""
     truth = [p.params for p in photos]
     out.mkdir(parents=True, exist_ok=True)
-    rows = fit_all(out / FITS, photos, lambda i, photo: ensemble.predict(photo), options,
+    every = fit_all(out / FITS, photos, lambda i, photo: ensemble.predict(photo), options,
         ensemble.sigma(photos[0].pixel_size_mm) if prior and photos else None, prep,
         progress)
+    fitted = [i for i, r in enumerate(every) if "error" not in r]
+    rows, truth, photos = ([seq[i] for i in fitted] for seq in (every, truth, photos))
     s = summary(rows, truth)
+    s["failed"] = [r for r in every if "error" in r]
     write_text(out / "results.csv", csv_text(rows, truth))
     figure = None
     if figure_count and rows:

@@ -52,6 +52,8 @@ def render(
 
     frame_size(scale)
     check_output(out)
+    if format is RenderFormat.png and out.suffix.lower() != ".png":
+        raise UserError(f"{out}: ipm render writes PNG images; give a .png name")
     if contact_sheet:
         if params is not None or preset is not None:
             raise UserError("--contact-sheet renders the 12 presets; give no parameters")
@@ -128,6 +130,8 @@ def knit(
     if not (16 <= width <= 8000 and 16 <= height <= 8000):
         raise UserError(f"--size {size!r}: each side must be in 16-8000 px")
     check_output(out)
+    if out.suffix.lower() != ".png":
+        raise UserError(f"{out}: ipm knit writes PNG images; give a .png name")
     check_not_inputs([out, out.with_suffix(".json")], [params])
     patch = knit_patch(p, pattern, wales, courses, seed)
     frame = patch_frame(patch, width, height)

@@ -186,9 +186,12 @@ def _die_with_parent() -> None:
 
 def _init_worker(variant: str | None, scene: SceneOptions, threads: int) -> None:
     global _renderer
+    import signal
+
     from ipm.render.renderer import Renderer
 
     _die_with_parent()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the command's to handle
     _renderer = Renderer(variant, scene, threads=threads)
 
 

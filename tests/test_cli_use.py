@@ -121,3 +121,48 @@ def test_a_vertical_yarn_is_turned(tmp_path):
     turned, straight = json.loads(r.stdout), json.loads(h.stdout)
     assert turned["n"] == straight["n"]
     assert turned["R_ply"] == pytest.approx(straight["R_ply"], rel=0.15)
+
+
+def test_render_writes_png_only(golden, tmp_path):
+    one_line_error(ipm("render", golden, "-o", tmp_path / "x.jpg"), "writes PNG images")
+    assert not list(tmp_path.glob("x.*"))
+
+
+def test_unknown_parameter_keys_are_named(golden, tmp_path):
+    d = json.loads(golden.read_text())
+    d["twsit"] = 3
+    (tmp_path / "typo.json").write_text(json.dumps(d))
+    r = ipm("curves", tmp_path / "typo.json", "-o", tmp_path / "y.npz")
+    assert r.returncode == 0 and "warning: ignored unknown parameter(s): twsit" in r.stderr
+
+
+def test_a_late_fit_error_leaves_no_empty_folder(tmp_path):
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / "ensemble.json").write_text("{not json")
+    r = ipm("fit", ROOT / "examples" / "golden.png", "--models", tmp_path / "models",
+            "--out", tmp_path / "fit")
+    assert r.returncode == 2, r.stderr
+    assert not (tmp_path / "fit").exists()
+
+
+@pytest.mark.slow
+def test_fit_without_refine_drops_an_earlier_refined_render(tmp_path):
+    out = tmp_path / "fit"
+    out.mkdir()
+    (out / "refined.png").write_bytes(b"from an earlier fit")
+    r = ipm("fit", ROOT / "examples" / "golden.png", "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert (out / "params.json").is_file() and not (out / "refined.png").exists()
+
+
+@pytest.mark.slow
+def test_compare_reports_an_unreadable_photo_and_goes_on(tmp_path):
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    shutil.copy(ROOT / "examples" / "golden.png", photos / "a.png")
+    (photos / "b.png").write_bytes(b"not an image")
+    r = ipm("compare", photos, "--out", tmp_path / "cmp", "--pixel-size", "0.02", "--budget", 4)
+    assert r.returncode == 0, r.stderr
+    assert "not fitted" in r.stderr and "b.png" in r.stderr
+    report = (tmp_path / "cmp" / "index.md").read_text()
+    assert "a.png" in report and "b.png" in report

@@ -251,3 +251,22 @@ def test_workers_of_a_killed_generate_end_with_it(tmp_path):
     alive = [pid for pid in children if os.path.exists(f"/proc/{pid}")
              and "zombie" not in open(f"/proc/{pid}/status").read().lower()]
     assert not alive, f"workers still running: {alive}"
+
+
+def test_ctrl_c_is_one_line_and_exit_130(tmp_path):
+    """SIGINT to the whole process group, as a terminal's Ctrl-C sends it."""
+    proc = subprocess.Popen(ipm_args("generate", "--count", 200, "--out", tmp_path / "ds",
+                                     "--workers", 2, *TINY),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.monotonic() + 60
+    manifest = tmp_path / "ds" / MANIFEST
+    while time.monotonic() < deadline and not (manifest.is_file() and manifest.read_text()):
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert "interrupted" in err and "Traceback" not in err
+    for rec in read_manifest(tmp_path / "ds"):  # what was made is listed and whole
+        with Image.open(rec.image) as img:
+            img.load()

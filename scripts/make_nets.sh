@@ -47,7 +47,9 @@ tmp.mkdir(parents=True)
 for run in runs:
     for net in json.loads((run / "ensemble.json").read_text())["nets"]:
         shutil.rmtree(tmp / net, ignore_errors=True)
-        shutil.copytree(run / net, tmp / net)
+        (tmp / net).mkdir()
+        for f in (run / net).glob("model.*"):  # the net, not its training checkpoint
+            shutil.copy(f, tmp / net / f.name)
 manifest = {"format": "ipm.nets/1", "preset": "ensemble", "nets": order}
 assert sorted(p.name for p in tmp.iterdir()) == sorted(order), "a net is missing"
 (tmp / "ensemble.json").write_text(json.dumps(manifest, indent=2))

@@ -48,7 +48,7 @@ def main() -> None:
             params = Path(tmp, f"{name}.json")
             subprocess.run([DEFAULT_IPM, "sample", "--preset", name, "-o", str(params)],
                            check=True, capture_output=True)
-            out = str(Path(tmp, f"{name}.png"))
+            out = str(Path(tmp, f"{name}-patch.png"))  # its sidecar must not be the params
             runs = [run(["knit", str(params), "-o", out, "--stitches", "8x6", "--size",
                          "1000x1000", "--spp", "16"]) for _ in range(args.repeats)]
             sidecar = json.loads(Path(out).with_suffix(".json").read_text())

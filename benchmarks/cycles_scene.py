@@ -106,15 +106,20 @@ def build(data: dict, samples: int, threads: int, material: str, bounces: int | 
     card_mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 1.0
     card.data.materials.append(card_mat)
 
+    add_yarn(scene, data, fiber_material(data, material))
+    return scene
+
+
+def add_yarn(scene: bpy.types.Scene, data: dict, material: bpy.types.Material) -> None:
+    """The fibers (``points``, ``offsets``, ``radius`` of the npz) as Blender hair curves."""
     offsets = data["offsets"].astype(np.int64)
     curves = bpy.data.hair_curves.new("yarn")
     curves.add_curves(np.diff(offsets).tolist())
     curves.position_data.foreach_set("vector", data["points"].astype(np.float32).ravel())
     radius = np.repeat(data["radius"], np.diff(offsets)).astype(np.float32)
     curves.attributes.new("radius", "FLOAT", "POINT").data.foreach_set("value", radius)
-    curves.materials.append(fiber_material(data, material))
+    curves.materials.append(material)
     scene.collection.objects.link(bpy.data.objects.new("yarn", curves))
-    return scene
 
 
 def srgb_pixels(path: str) -> np.ndarray:

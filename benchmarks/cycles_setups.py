@@ -26,6 +26,7 @@ import time
 
 import bpy
 import numpy as np
+from cycles_scene import add_yarn  # beside this script, in Blender's Python
 from mathutils import Vector
 
 LENS_MM = 100.0
@@ -107,12 +108,6 @@ def build(d: dict) -> bpy.types.Scene:
         area_light(scene, "fill", (-80.0, -120.0, 180.0), 60.0, 0.15 * float(d["lamp_power"]))
         plane("card", 400.0, -40.0, tuple(float(c) for c in d["card"]))
 
-    offsets = d["offsets"].astype(np.int64)
-    curves = bpy.data.hair_curves.new("yarn")
-    curves.add_curves(np.diff(offsets).tolist())
-    curves.position_data.foreach_set("vector", d["points"].astype(np.float32).ravel())
-    radius = np.repeat(d["radius"], np.diff(offsets)).astype(np.float32)
-    curves.attributes.new("radius", "FLOAT", "POINT").data.foreach_set("value", radius)
     mat = bpy.data.materials.new("fibers")
     mat.use_nodes = True
     nodes = mat.node_tree.nodes
@@ -122,8 +117,7 @@ def build(d: dict) -> bpy.types.Scene:
     hair.inputs["Color"].default_value = (*[float(c) for c in d["color"]], 1.0)
     hair.inputs["Roughness"].default_value = float(d["roughness"])
     mat.node_tree.links.new(hair.outputs[0], nodes["Material Output"].inputs["Surface"])
-    curves.materials.append(mat)
-    scene.collection.objects.link(bpy.data.objects.new("yarn", curves))
+    add_yarn(scene, d, mat)
     return scene
 
 

@@ -87,15 +87,20 @@ def render(
                f"-> {out}", err=True)
 
 
-def _stitches(text: str) -> tuple[int, int]:
-    """``WALESxCOURSES`` (e.g. 8x6) as two integers in [1, 40]."""
+def _pair(text: str, option: str, what: str, lo: int, hi: int) -> tuple[int, int]:
+    """``AxB`` (e.g. 8x6) as two integers in [lo, hi], or a one-line error naming ``option``."""
     try:
-        wales, courses = (int(v) for v in text.lower().split("x"))
+        a, b = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise UserError(f"--stitches {text!r}: expected WALESxCOURSES, e.g. 8x6") from None
-    if not (1 <= wales <= 40 and 1 <= courses <= 40):
-        raise UserError(f"--stitches {text!r}: wales and courses must be in 1-40")
-    return wales, courses
+        raise UserError(f"{option} {text!r}: expected {what}, e.g. 8x6") from None
+    if not (lo <= a <= hi and lo <= b <= hi):
+        raise UserError(f"{option} {text!r}: each must be in {lo}-{hi}")
+    return a, b
+
+
+def _stitches(text: str) -> tuple[int, int]:
+    """``WALESxCOURSES`` as two integers in [1, 40]."""
+    return _pair(text, "--stitches", "WALESxCOURSES", 1, 40)
 
 
 def knit(
@@ -123,12 +128,7 @@ def knit(
     p = _yarn_of(params)
     wales, courses = _stitches(stitches)
     faces(pattern, 1, 1)  # an unknown pattern fails before any work
-    try:
-        width, height = (int(v) for v in size.lower().split("x"))
-    except ValueError:
-        raise UserError(f"--size {size!r}: expected WIDTHxHEIGHT, e.g. 1000x1000") from None
-    if not (16 <= width <= 8000 and 16 <= height <= 8000):
-        raise UserError(f"--size {size!r}: each side must be in 16-8000 px")
+    width, height = _pair(size, "--size", "WIDTHxHEIGHT in pixels", 16, 8000)
     check_output(out)
     if out.suffix.lower() != ".png":
         raise UserError(f"{out}: ipm knit writes PNG images; give a .png name")

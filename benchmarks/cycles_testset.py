@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ipm.dataset import MANIFEST
 from ipm.generator import generate
 from ipm.io import write_text
 from ipm.prior import GuidedPrior
@@ -31,7 +32,6 @@ SEED = 31_415_926
 PIXEL_SIZE_MM = 0.04
 FRAME = (400, 150)
 SAMPLES = 16
-MANIFEST = "manifest.jsonl"
 #: Generator axes (x, y, z) -> Blender world: the yarn along world x, seen from +z.
 TO_WORLD = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 

@@ -235,8 +235,10 @@ def _bad_photo(tmp_path, kind):
     elif kind == "truncated":
         Image.fromarray(np.full((60, 200, 3), 99, np.uint8)).save(path)
         path.write_bytes(path.read_bytes()[:200])
-    elif kind == "tiny":
-        Image.fromarray(np.zeros((20, 30, 3), np.uint8)).save(path)
+    elif kind == "tiny":  # a bright band across a dark 30 x 20 px frame: a yarn, too small
+        img = np.zeros((20, 30, 3), np.uint8)
+        img[8:12] = 200
+        Image.fromarray(img).save(path)
     elif kind == "huge":
         Image.new("1", (12_000, 11_000)).save(path)
     elif kind == "missing":

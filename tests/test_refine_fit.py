@@ -66,15 +66,15 @@ def test_bad_search_params_one_line(models, photo, tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "fit").exists()
 
 
-def test_no_yarn_keeps_the_neural_result(models, tmp_path):
+def test_a_photo_without_a_yarn_is_refused(models, tmp_path):
+    """Refused in one line before any output, as ipm predict refuses it (it used to be fitted
+    and its neural result kept)."""
     flat = tmp_path / "flat.png"
     write_png(flat, np.full((150, 500, 3), 0.4, np.float32))
     r = ipm("fit", flat, "--refine", "--models", models, "--pixel-size", 0.04, "--budget", 12,
             "--out", tmp_path / "fit")
-    assert r.returncode == 0, r.stderr
-    assert "no yarn found" in r.stderr
-    result = json.loads((tmp_path / "fit" / "params.json").read_text())
-    assert result["refined"] == result["neural"] and not result["improved"]
+    assert r.returncode == 2 and "no yarn found" in r.stderr and r.stderr.count("\n") == 1
+    assert not (tmp_path / "fit").exists()
 
 
 @pytest.mark.parametrize("content, message", [(b"not an image", "not an image"),
@@ -82,13 +82,14 @@ def test_no_yarn_keeps_the_neural_result(models, tmp_path):
 def test_bad_photo_one_line(models, tmp_path, content, message):
     bad = tmp_path / "bad.png"
     bad.write_bytes(content)
-    r = ipm("fit", bad, "--models", models, "--out", tmp_path / "fit")
+    r = ipm("fit", bad, "--models", models, "--pixel-size", 0.04, "--out", tmp_path / "fit")
     assert r.returncode == 2 and r.stderr.startswith("error: ") and r.stderr.count("\n") == 1
     assert message in r.stderr and not (tmp_path / "fit" / "params.json").exists()
 
 
 def test_missing_models_one_line(photo, tmp_path):
-    r = ipm("fit", photo, "--models", tmp_path / "none", "--out", tmp_path / "fit")
+    r = ipm("fit", photo, "--models", tmp_path / "none", "--pixel-size", 0.04, "--out",
+            tmp_path / "fit")
     assert r.returncode == 2 and "holds no trained models" in r.stderr
 
 

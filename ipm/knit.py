@@ -6,7 +6,7 @@ The centre line is a closed-form model of weft-knitted loops in the spirit of Pe
 Research Journal 17) plain-knit loop: each stitch is an Omega-shaped loop (a needle loop, or
 head, on top of two legs that narrow into a neck, joined to the next stitch by a sinker
 loop below), and the loops of one course are drawn through the heads of the course below.
-A stitch is 13 control points (:func:`stitch_points`) in units of the yarn diameter ``D``,
+A stitch is 10 control points (:func:`stitch_points`) in units of the yarn diameter ``D``,
 joined course by course by a natural cubic spline (C2, so the swept frame turns smoothly):
 legs in front (+z, towards the camera) and heads and sinkers behind on the knit face, so
 that a leg passes in front of the head below it and a sinker behind the legs below it.
@@ -46,13 +46,18 @@ WALE, COURSE, NECK, HEAD, DEPTH = 5.5, 2.8, 1.2, 4.2, 0.9
 SAMPLES_PER_D = 20
 
 
+def arc_length(curve: np.ndarray) -> np.ndarray:
+    """(N,) cumulative arc length (mm) along a polyline (N, 3), from 0."""
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))])
+
+
 def yarn_diameter(params: YarnParams) -> float:
     """``D`` (mm): the plies' envelope, ``2 (R_ply + max(r_x, r_y))``."""
     return 2 * (params.R_ply + max(params.r_x, params.r_y))
 
 
 def stitch_points(leg: float, head: float, sinker: float) -> np.ndarray:
-    """(12, 3) control points of one stitch in yarn diameters, from the sinker bottom at the
+    """(10, 3) control points of one stitch in yarn diameters, from the sinker bottom at the
     stitch's left edge (x = 0) to just before the next stitch's (x = WALE).  The signs say
     which side (+1 front, -1 back) the legs, the head and the sinker at the left edge pass."""
     xc, n, h, d, c = WALE / 2, NECK / 2, HEAD / 2, DEPTH, COURSE
@@ -84,7 +89,7 @@ def course_centreline(face: np.ndarray, row: int, diameter: float) -> np.ndarray
     from scipy.interpolate import CubicSpline
 
     own = face[row].astype(np.float64)
-    above = face[min(row + 1, len(face) - 1)] if row + 1 < len(face) else own
+    above = face[row + 1] if row + 1 < len(face) else own
     below = face[row - 1] if row > 0 else own
     sinker = -below
     edge = np.concatenate([[sinker[0]], (sinker[:-1] + sinker[1:]) / 2, [sinker[-1]]])
@@ -95,7 +100,7 @@ def course_centreline(face: np.ndarray, row: int, diameter: float) -> np.ndarray
     s = np.arange(len(ctrl), dtype=np.float64)
     spline = CubicSpline(s, ctrl, bc_type="natural")
     fine = spline(np.linspace(0, s[-1], 64 * len(ctrl)))
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(fine, axis=0), axis=1))])
+    arc = arc_length(fine)
     samples = np.interp(np.linspace(0, arc[-1], int(arc[-1] * SAMPLES_PER_D) + 1), arc,
                         np.linspace(0, s[-1], len(fine)))
     return spline(samples) * diameter
@@ -128,7 +133,7 @@ def sweep(fibers: FiberSet, curve: np.ndarray) -> FiberSet:
     """The fibers of a straight yarn (axis z, centred on 0) carried along ``curve``: a
     point's z is its arc length from the curve's middle (see the module notes)."""
     e1, e2, t = rotation_minimising_frames(curve)
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))])
+    arc = arc_length(curve)
     p = fibers.points.astype(np.float64)
     s = np.clip(p[:, 2] + arc[-1] / 2, 0.0, arc[-1])
     k = np.clip(np.searchsorted(arc, s) - 1, 0, len(arc) - 2)
@@ -163,8 +168,7 @@ def knit_patch(params: YarnParams, pattern: Pattern = "knit", wales: int = 8,
     lines = [c - centre for c in lines]
     parts = []
     for r, line in enumerate(lines):
-        length = float(np.sum(np.linalg.norm(np.diff(line, axis=0), axis=1)))
-        parts.append(sweep(generate(params, seed + r, length=length), line))
+        parts.append(sweep(generate(params, seed + r, length=float(arc_length(line)[-1])), line))
     return Patch(fibers=concatenate(parts), centrelines=lines, diameter=d)
 
 

@@ -136,18 +136,14 @@ def _knit_panel(renderer, params, pattern: str, width: int, out: Path):
     """Knit ``params`` into an 8 x 6 patch ``width`` px wide and half as high; writes
     knit.png and its sidecar knit.json into ``out`` and returns the image."""
     from ipm.io import write_text
-    from ipm.knit import knit_patch
     from ipm.photo import linear_to_srgb, write_png
-    from ipm.render.patch import patch_frame, render_patch
+    from ipm.render.patch import knit_and_render
 
-    patch = knit_patch(params, pattern, 8, 6, seed=0)
-    frame = patch_frame(patch, width, width // 2)
-    image = linear_to_srgb(render_patch(renderer, patch, params.color, frame, spp=16))
+    linear, record, _ = knit_and_render(renderer, params, pattern, (8, 6), (width, width // 2),
+                                        spp=16)
+    image = linear_to_srgb(linear)
     write_png(out / "knit.png", image)
-    write_text(out / "knit.json", json.dumps({
-        "params": params.to_dict(), "pattern": pattern, "stitches": [8, 6], "seed": 0,
-        "render_seed": 0, "spp": 16, "width": frame.width, "height": frame.height,
-        "pixel_size_mm": frame.pixel_size_mm}, indent=2))
+    write_text(out / "knit.json", json.dumps(record, indent=2))
     return image
 
 

@@ -121,8 +121,8 @@ def knit(
     yarn swept along them) and render it in the scene's lights; writes ``<out>.json``
     beside the image with everything needed to render it again."""
     from ipm.io import write_text
-    from ipm.knit import faces, knit_patch
-    from ipm.render.patch import patch_frame, render_patch
+    from ipm.knit import faces
+    from ipm.render.patch import knit_and_render
     from ipm.render.renderer import Renderer, save_png
 
     p = _yarn_of(params)
@@ -133,19 +133,12 @@ def knit(
     if out.suffix.lower() != ".png":
         raise UserError(f"{out}: ipm knit writes PNG images; give a .png name")
     check_not_inputs([out, out.with_suffix(".json")], [params])
-    patch = knit_patch(p, pattern, wales, courses, seed)
-    frame = patch_frame(patch, width, height)
-    renderer = Renderer(variant)
-    image = render_patch(renderer, patch, p.color, frame, spp, render_seed)
+    image, record, patch = knit_and_render(Renderer(variant), p, pattern, (wales, courses),
+                                           (width, height), spp, seed, render_seed)
     save_png(out, image)
-    record = {"params": p.to_dict(), "pattern": pattern, "stitches": [wales, courses],
-              "seed": seed, "render_seed": render_seed, "spp": spp, "width": width,
-              "height": height, "pixel_size_mm": frame.pixel_size_mm,
-              "yarn_diameter_mm": patch.diameter, "variant": renderer.variant,
-              "scene": renderer.settings(1.0, spp, render_seed)["scene"]}
     write_text(out.with_suffix(".json"), json.dumps(record, indent=2) + "\n")
     typer.echo(f"{pattern} {wales}x{courses}, {patch.fibers.num_fibers} fibers, "
-               f"{width}x{height} px at {frame.pixel_size_mm:.4g} mm/px -> {out}", err=True)
+               f"{width}x{height} px at {record['pixel_size_mm']:.4g} mm/px -> {out}", err=True)
 
 
 def _yarn_of(path: Path):

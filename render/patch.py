@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ipm.knit import Patch
+from ipm.knit import Patch, knit_patch
+from ipm.params import YarnParams
 from ipm.render.renderer import Renderer
 from ipm.render.scene import Frame
 
@@ -26,3 +27,20 @@ def render_patch(renderer: Renderer, patch: Patch, color: tuple[float, float, fl
                  frame: Frame, spp: int, render_seed: int = 0) -> np.ndarray:
     """Linear RGB (H, W, 3) float32 of the patch, seen along -z."""
     return renderer.render_fibers(patch.fibers, color, 1.0, spp, render_seed, np.eye(4), frame)
+
+
+def knit_and_render(renderer: Renderer, params: YarnParams, pattern: str,
+                    stitches: tuple[int, int], size: tuple[int, int], spp: int, seed: int = 0,
+                    render_seed: int = 0) -> tuple[np.ndarray, dict, Patch]:
+    """Knit ``params`` (``stitches`` = wales, courses) and render the patch at ``size`` =
+    (width, height) px: the linear RGB image, the sidecar record that renders it again,
+    and the patch."""
+    patch = knit_patch(params, pattern, *stitches, seed)
+    frame = patch_frame(patch, *size)
+    image = render_patch(renderer, patch, params.color, frame, spp, render_seed)
+    record = {"params": params.to_dict(), "pattern": pattern, "stitches": list(stitches),
+              "seed": seed, "render_seed": render_seed, "spp": spp, "width": frame.width,
+              "height": frame.height, "pixel_size_mm": frame.pixel_size_mm,
+              "yarn_diameter_mm": patch.diameter, "variant": renderer.variant,
+              "scene": renderer.settings(1.0, spp, render_seed)["scene"]}
+    return image, record, patch

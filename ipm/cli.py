@@ -32,7 +32,12 @@ def sample(
     from ipm.presets import preset as get_preset
     from ipm.prior import GuidedPrior
 
-    params = get_preset(preset) if preset else GuidedPrior().sample(np.random.default_rng(seed))
+    _emit(get_preset(preset) if preset else GuidedPrior().sample(np.random.default_rng(seed)),
+          out)
+
+
+def _emit(params, out: Path | None) -> None:
+    """Yarn parameters as JSON to ``out``, or to stdout without one."""
     if out is None:
         typer.echo(params.to_json())
         return
@@ -106,12 +111,7 @@ def edit(
     from ipm.edit import apply_edits
     from ipm.params import YarnParams
 
-    p = apply_edits(YarnParams.load(params), set_)
-    if out is None:
-        typer.echo(p.to_json())
-        return
-    check_output(out)
-    write_text(out, p.to_json() + "\n")
+    _emit(apply_edits(YarnParams.load(params), set_), out)
 
 
 @app.command()

@@ -30,3 +30,19 @@ def test_raw_yarn_relations_of_the_sampler():
 def test_seeded():
     a, b = GuidedPrior().sample_many(5, seed=1), GuidedPrior().sample_many(5, seed=1)
     assert a == b and a != GuidedPrior().sample_many(5, seed=2)
+
+
+def test_flyaways_drawn_in_the_real_yarns_ranges_unless_asked_for_the_paper_intervals():
+    from ipm.presets import PRESET_NAMES, preset
+    from ipm.prior import FLYAWAY_RANGES
+
+    real = GuidedPrior().sample_many(400, seed=7)
+    paper = GuidedPrior(flyaways="paper").sample_many(400, seed=7)
+    for k, (lo, hi) in FLYAWAY_RANGES.items():
+        v = [getattr(p, k) for p in real]
+        assert lo <= min(v) and max(v) <= hi, k
+        # every one of the paper's real yarns lies inside the box
+        assert all(lo <= getattr(preset(name), k) <= hi for name in PRESET_NAMES), k
+    # the paper's whole intervals reach the 35 mm loops and 14 mm hairs the box leaves out
+    assert max(p.l_loop for p in paper) > 25 and max(p.l_hair for p in paper) > 10
+    assert max(p.l_loop for p in real) < 17 and max(p.l_hair for p in real) < 6.3

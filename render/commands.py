@@ -18,6 +18,9 @@ DEFAULT_RENDER_SPP = 16
 VariantOpt = Annotated[str | None, typer.Option(
     help="Mitsuba variant: llvm_ad_rgb (default, CPU), cuda_ad_rgb or scalar_rgb; "
          "also the IPM_VARIANT environment variable")]
+SetupOpt = Annotated[str, typer.Option(
+    help="capture setup: frontlit (colour macro photo under soft boxes, the paper's) or "
+         "backlit (grey silhouette on a light panel, as hairiness testers and microscopes)")]
 
 
 class RenderFormat(str, Enum):
@@ -43,14 +46,16 @@ def render(
                                                  "scene (+ curve file) to render elsewhere")]
     = RenderFormat.png,
     variant: VariantOpt = None,
+    setup: SetupOpt = "frontlit",
 ) -> None:
-    """Render a yarn like a macro photo of the lab setup; writes ``<out>.json`` beside the
-    image (parameters, seeds, render settings and ``pixel_size_mm``)."""
+    """Render a yarn like a photo of one of the capture setups; writes ``<out>.json`` beside
+    the image (parameters, seeds, render settings, setup and ``pixel_size_mm``)."""
     from ipm.params import YarnParams
     from ipm.presets import preset as get_preset
-    from ipm.render.scene import frame_size
+    from ipm.render.scene import frame_size, setup_options
 
     frame_size(scale)
+    options = setup_options(setup)
     check_output(out)
     if format is RenderFormat.png and out.suffix.lower() != ".png":
         raise UserError(f"{out}: ipm render writes PNG images; give a .png name")
@@ -59,7 +64,7 @@ def render(
             raise UserError("--contact-sheet renders the 12 presets; give no parameters")
         from ipm.render.contact_sheet import contact_sheet as make_sheet
 
-        make_sheet(out, scale=scale, spp=spp, seed=seed, variant=variant)
+        make_sheet(out, scale=scale, spp=spp, seed=seed, variant=variant, options=options)
         typer.echo(f"contact sheet of the 12 presets -> {out}", err=True)
         return
     if (params is None) == (preset is None):
@@ -72,13 +77,14 @@ def render(
     if format is RenderFormat.xml:
         from ipm.render.export import save_scene_xml
 
-        files = save_scene_xml(out, p, seed, scale=scale, spp=spp, variant=variant)
+        files = save_scene_xml(out, p, seed, scale=scale, spp=spp, variant=variant,
+                               options=options)
         typer.echo(f"Mitsuba scene -> {', '.join(map(str, files))}", err=True)
         return
     from ipm.io import write_text
     from ipm.render.renderer import Renderer, save_png
 
-    renderer = Renderer(variant)
+    renderer = Renderer(variant, options)
     image = renderer.render(p, seed, scale, spp, render_seed)
     save_png(out, image)
     record = {"params": p.to_dict(), "seed": seed, **renderer.settings(scale, spp, render_seed)}
@@ -197,13 +203,14 @@ def generate(
                                               "and rotation and sensor noise per sample "
                                               "(seeded, recorded in the manifest)")] = True,
     variant: VariantOpt = None,
+    setup: SetupOpt = "frontlit",
     ray: Annotated[str | None, typer.Option(help="render on Ray instead of a local pool: "
                                             "'auto' joins a running cluster, 'local' starts "
                                             "one, or host:port (pip install -e '.[ray]')")]
     = None,
 ) -> None:
-    """Make the synthetic dataset: guided-prior yarns rendered in THE scene, with
-    ``manifest.jsonl`` (one JSON object per sample) and ``images/``."""
+    """Make the synthetic dataset: guided-prior yarns rendered in THE scene of one capture
+    setup, with ``manifest.jsonl`` (one JSON object per sample) and ``images/``."""
     from ipm.progress import progress_bar
     from ipm.render.dataset import (
         DEFAULT_SCALE,
@@ -213,12 +220,14 @@ def generate(
         spp_range,
     )
     from ipm.render.photometric import NO_VARIATION, PhotometricRanges
+    from ipm.render.scene import setup_options
 
     spp_min, spp_max = spp_range(spp) if spp is not None else (DEFAULT_SPP, None)
     opts = GenerateOptions(count=count, seed=seed, split=split,
                            scale=DEFAULT_SCALE if scale is None else scale,
                            spp=spp_min, spp_max=spp_max,
-                           photometric=PhotometricRanges() if photometric else NO_VARIATION)
+                           photometric=PhotometricRanges() if photometric else NO_VARIATION,
+                           scene=setup_options(setup))
     with progress_bar("{task.fields[rate]}") as bar:
         task = bar.add_task(f"{split} -> {out}", total=count, rate="")
         start: list[tuple[float, int]] = []

@@ -11,18 +11,20 @@ from PIL import Image, ImageDraw
 from ipm.io import atomic_path
 from ipm.presets import PRESET_NAMES, preset
 from ipm.render.renderer import Renderer, to_srgb8
+from ipm.render.scene import DEFAULT_OPTIONS, SceneOptions
 
 COLUMNS = 2
 GAP_PX = 6
 
 
 def contact_sheet(out: str | os.PathLike, scale: float = 0.25, spp: int = 16, seed: int = 1,
-                  variant: str | None = None) -> np.ndarray:
+                  variant: str | None = None, options: SceneOptions = DEFAULT_OPTIONS
+                  ) -> np.ndarray:
     """Render every preset at ``scale`` and tile them, labelled, into a PNG at ``out``.
 
     Returns the sheet (H, W, 3) uint8 sRGB.
     """
-    renderer = Renderer(variant)
+    renderer = Renderer(variant, options)
     tiles = [to_srgb8(renderer.render(preset(name), seed, scale, spp)) for name in PRESET_NAMES]
     h, w, _ = tiles[0].shape
     rows = -(-len(tiles) // COLUMNS)

@@ -207,7 +207,7 @@ def make_sample(folder: str, opts: GenerateOptions, index: int) -> Record:
     save_png(Path(folder, image_name(index)), image)
     width, height = frame_size(opts.scale)
     return Record(Path(folder, image_name(index)), pixel_size_mm(opts.scale), plan.params,
-                  plan.fiber_seed, index=index, info={
+                  plan.fiber_seed, setup=opts.scene.setup, index=index, info={
                       "split": opts.split, "render_seed": plan.render_seed,
                       "scale": opts.scale, "spp": spp, "width": width, "height": height,
                       "photometric": plan.photometric.to_dict(),

@@ -25,6 +25,8 @@ from ipm.render.scene import (
     DEFAULT_OPTIONS,
     Frame,
     SceneOptions,
+    albedo_parameter,
+    fiber_albedo,
     frame_size,
     pixel_size_mm,
     scene_dict,
@@ -73,7 +75,7 @@ class Renderer:
         """What a saved image records about how it was rendered (JSON-ready)."""
         width, height = frame_size(scale)
         return {"scale": scale, "spp": spp, "render_seed": render_seed, "width": width,
-                "height": height, "pixel_size_mm": pixel_size_mm(scale), "setup": "frontlit",
+                "height": height, "pixel_size_mm": pixel_size_mm(scale), "setup": self.options.setup,
                 "variant": self.variant, "scene": asdict(self.options)}
 
     def _load(self, scale: float, curve_text: str, color: tuple[float, float, float],
@@ -129,7 +131,8 @@ class Renderer:
             params["yarn.control_points"] = self.mi.Float(points.ravel())
             params["yarn.segment_indices"] = self.mi.UInt32(segments)
             params["yarn.control_point_count"] = len(points)
-            params["yarn.bsdf.base_color.value"] = self.mi.Color3f(*color)
+            params[albedo_parameter(self.options)] = self.mi.Color3f(
+                *fiber_albedo(color, self.options))
             params.update()
         image = self.mi.render(scene, spp=spp, seed=render_seed)
         return np.array(image, dtype=np.float32)[..., :3]
@@ -137,11 +140,16 @@ class Renderer:
     def render(self, params: YarnParams, seed: int, scale: float, spp: int,
                render_seed: int = 0, photometric: Photometric = NOMINAL) -> np.ndarray:
         """Linear RGB image (H, W, 3) float32 of the yarn ``generate(params, seed)``, with
-        the capture variation ``photometric`` applied (geometry and image)."""
+        the capture variation ``photometric`` applied (geometry and image); a backlit
+        photo is grey (a monochrome sensor: the channels' mean in all three)."""
         to_world = yarn_to_world(photometric.shift_mm, photometric.rotation_deg)
         image = self.render_fibers(generate(params, seed), params.color, scale, spp,
                                    render_seed, to_world)
-        return apply_to_image(image, photometric) if photometric != NOMINAL else image
+        if photometric != NOMINAL:
+            image = apply_to_image(image, photometric)
+        if self.options.setup == "backlit":
+            image = np.repeat(image.mean(axis=-1, keepdims=True), 3, axis=-1)
+        return image
 
 
 def to_srgb8(image: np.ndarray) -> np.ndarray:

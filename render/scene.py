@@ -1,8 +1,19 @@
 """THE scene: a 1:1 macro photo of a yarn in a simple lab capture, as a ``mi.load_dict`` dict.
 
 Dataset generation, the nets' training crops and every render of the refine loop call
-:func:`scene_dict` with a resolution ``scale`` and a sample count, so they all see the same
-camera, lights, backdrop and fiber material.
+:func:`scene_dict` with a resolution ``scale``, a sample count and one :class:`SceneOptions`,
+so they all see the same camera, lights, backdrop and fiber material.  Two capture setups
+share the camera and the yarn (:data:`SETUPS`):
+
+* ``frontlit``: the paper's set-up, a colour macro photo under two soft boxes in front of
+  the yarn over a dark card (the rest of this docstring);
+* ``backlit``: transmitted light, as in hairiness testers and microscope rigs (the photos
+  in ``../shared/real-yarns``): a bright diffuse panel behind the yarn, which stands out as
+  a dark grey, partly translucent silhouette.  Each fiber stops a share ``opacity`` of the
+  light that meets it (Mitsuba's ``mask`` over a grey diffuse BSDF, so overlapping fibers
+  darken the core as cotton's translucent fibers do) and reflects a little of the panel's
+  and the room's light; grey, since such photos are.  Mitsuba's ``path`` renders it, with
+  the panel seen by camera rays and paths long enough to pass a ply's fibers.
 
 World frame (mm): image right = +x, image up = +y, the camera looks down -z.  The yarn lies
 along x through the origin (generator axis z -> world x, generator x -> world y, generator
@@ -76,22 +87,31 @@ LIGHT_SAMPLING = ("weighted", "uniform")
 INTEGRATORS = (PLUGIN, "path")
 
 
+CAPTURE_SETUPS = ("frontlit", "backlit")
+
+
 @dataclass(frozen=True)
 class SceneOptions:
-    """What stays fixed across a dataset: fiber roughness and sheen, lights, backdrop, depth.
+    """What stays fixed across a dataset: the capture setup, fiber material, lights, depth.
 
-    roughness, sheen: of the fibers' principled BSDF.  backdrop: albedo of the grey card.
-    key_light: radiance of the left soft box (the right one has 0.6 of it).  room_light:
-    uniform fill radiance.  max_depth: path length (3 = one bounce of light between fibers).
-    sampler: Mitsuba's pixel sampler (see the module doc).  light_sampling: the lamps'
-    ``sampling_weight`` (:data:`LIGHT_WEIGHTS` or all equal).  integrator: see
-    :data:`INTEGRATORS`.
+    setup: one of :data:`CAPTURE_SETUPS` (module doc).  roughness, sheen: of the fibers'
+    principled BSDF (frontlit).  backdrop: albedo of the grey card (frontlit).  key_light:
+    radiance of the left soft box (the right one has 0.6 of it; frontlit).  panel: radiance
+    of the light panel behind the yarn (backlit).  opacity: share of the light a fiber stops
+    (backlit).  room_light: uniform fill radiance.  max_depth: path length (frontlit: 3 =
+    one bounce between fibers; backlit: enough to pass through a ply).  sampler: Mitsuba's
+    pixel sampler (see the module doc).  light_sampling: the lamps' ``sampling_weight``
+    (:data:`LIGHT_WEIGHTS` or all equal).  integrator: see :data:`INTEGRATORS` (backlit:
+    ``path``, whose camera rays see the panel).
     """
 
+    setup: str = "frontlit"
     roughness: float = 0.5
     sheen: float = 0.5
     backdrop: float = 0.03
     key_light: float = 5.0
+    panel: float = 0.6
+    opacity: float = 0.5
     room_light: float = 0.15
     max_depth: int = 3
     sampler: str = "multijitter"
@@ -99,6 +119,14 @@ class SceneOptions:
     integrator: str = PLUGIN
 
     def __post_init__(self) -> None:
+        if self.setup not in CAPTURE_SETUPS:
+            raise UserError(f"unknown capture setup {self.setup!r}; one of "
+                            f"{', '.join(CAPTURE_SETUPS)}")
+        if self.setup == "backlit" and self.integrator != "path":
+            raise UserError("the backlit setup renders with integrator 'path' (its camera rays "
+                            f"must see the panel), not {self.integrator!r}")
+        if not 0 < self.opacity <= 1:
+            raise UserError(f"fiber opacity must be in (0, 1], got {self.opacity}")
         if self.sampler not in SAMPLERS:
             raise UserError(f"unknown sampler {self.sampler!r}; one of {', '.join(SAMPLERS)}")
         if self.light_sampling not in LIGHT_SAMPLING:
@@ -118,6 +146,18 @@ class SceneOptions:
 
 
 DEFAULT_OPTIONS = SceneOptions()
+#: Each capture setup's scene; ``--setup NAME`` picks one in every command.
+SETUPS: dict[str, SceneOptions] = {
+    "frontlit": DEFAULT_OPTIONS,
+    "backlit": SceneOptions(setup="backlit", integrator="path", max_depth=16, room_light=0.05),
+}
+
+
+def setup_options(name: str) -> SceneOptions:
+    """The scene of capture setup ``name`` (one line naming the choices if unknown)."""
+    if name not in SETUPS:
+        raise UserError(f"unknown capture setup {name!r}; one of {', '.join(SETUPS)}")
+    return SETUPS[name]
 
 
 @dataclass(frozen=True)
@@ -154,9 +194,31 @@ def yarn_to_world(shift_mm: tuple[float, float] = (0.0, 0.0), rotation_deg: floa
     return m
 
 
+def fiber_albedo(color: tuple[float, float, float], opts: SceneOptions
+                 ) -> tuple[float, float, float]:
+    """The fibers' albedo in ``opts``' setup: the yarn's colour, or in the grey backlit setup
+    its luminance (Rec. 709 weights)."""
+    if opts.setup == "backlit":
+        grey = 0.2126 * color[0] + 0.7152 * color[1] + 0.0722 * color[2]
+        return (grey, grey, grey)
+    return tuple(color)
+
+
+def albedo_parameter(opts: SceneOptions) -> str:
+    """The ``mi.traverse`` key of the fibers' albedo, swapped per yarn."""
+    return ("yarn.bsdf.nested_bsdf.reflectance.value" if opts.setup == "backlit"
+            else "yarn.bsdf.base_color.value")
+
+
 def fiber_bsdf(color: tuple[float, float, float], opts: SceneOptions) -> dict[str, Any]:
-    """The fibers' BSDF; ``base_color`` is swapped per yarn through ``mi.traverse``."""
-    return {"type": "principled", "base_color": {"type": "rgb", "value": list(color)},
+    """The fibers' BSDF (:func:`albedo_parameter` is swapped per yarn through
+    ``mi.traverse``): frontlit a principled BSDF, backlit a grey diffuse one that lets
+    ``1 - opacity`` of the light through."""
+    albedo = {"type": "rgb", "value": list(fiber_albedo(color, opts))}
+    if opts.setup == "backlit":
+        return {"type": "mask", "opacity": opts.opacity,
+                "bsdf": {"type": "diffuse", "reflectance": albedo}}
+    return {"type": "principled", "base_color": albedo,
             "roughness": opts.roughness, "specular": 0.4, "sheen": opts.sheen}
 
 
@@ -178,11 +240,33 @@ def _soft_box(name: str, position: tuple[float, float, float], size_mm: float,
 
 
 def integrator_dict(mi: ModuleType, opts: SceneOptions) -> dict[str, Any]:
-    """``opts.integrator`` for the variant set in ``mi``; scalar variants run ``path``."""
+    """``opts.integrator`` for the variant set in ``mi``; scalar variants run ``path``.
+    Emitters are hidden from camera rays but for the backlit panel."""
     if opts.integrator == PLUGIN and not mi.variant().startswith("scalar"):
         register(mi)
         return {"type": PLUGIN, "max_depth": opts.max_depth}
-    return {"type": "path", "max_depth": opts.max_depth, "hide_emitters": True}
+    return {"type": "path", "max_depth": opts.max_depth,
+            "hide_emitters": opts.setup != "backlit"}
+
+
+def _lights(opts: SceneOptions) -> dict[str, Any]:
+    """The setup's backdrop and lights: the card under two soft boxes, or the panel."""
+    import mitsuba as mi
+
+    T = mi.ScalarTransform4f
+    behind = T().translate([0, 0, -BACKDROP_DEPTH_MM]) @ T().scale(200)
+    room = {"room": _emitter("constant", "room", opts.room_light, opts)}
+    if opts.setup == "backlit":  # a rectangle faces +z, the camera
+        return {"panel": {"type": "rectangle", "to_world": behind,
+                          "emitter": {"type": "area",
+                                      "radiance": {"type": "rgb", "value": [opts.panel] * 3}}},
+                **room}
+    return {"backdrop": {"type": "rectangle", "to_world": behind,
+                         "bsdf": {"type": "diffuse",
+                                  "reflectance": {"type": "rgb", "value": [opts.backdrop] * 3}}},
+            **{name: _soft_box(name, centre, side, share * opts.key_light, opts)
+               for name, centre, side, share in SOFT_BOXES},
+            **room}
 
 
 def scene_dict(scale: float, spp: int, curves: str, color: tuple[float, float, float],
@@ -218,11 +302,5 @@ def scene_dict(scale: float, spp: int, curves: str, color: tuple[float, float, f
                             "pixel_format": "rgb", "rfilter": {"type": "box"}}},
         "yarn": {"type": "linearcurve", "filename": curves, "to_world": T(matrix.tolist()),
                  "bsdf": fiber_bsdf(color, opts)},
-        "backdrop": {"type": "rectangle",
-                     "to_world": T().translate([0, 0, -BACKDROP_DEPTH_MM]) @ T().scale(200),
-                     "bsdf": {"type": "diffuse",
-                              "reflectance": {"type": "rgb", "value": [opts.backdrop] * 3}}},
-        **{name: _soft_box(name, centre, side, share * opts.key_light, opts)
-           for name, centre, side, share in SOFT_BOXES},
-        "room": _emitter("constant", "room", opts.room_light, opts),
+        **_lights(opts),
     }

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from ipm import preset
+from ipm import FiberSet, preset
 from ipm.errors import UserError
 from ipm.render.photometric import (
     NO_VARIATION,
@@ -276,3 +276,55 @@ def test_cli_doctor():
     r = ipm("doctor")
     assert r.returncode == 0
     assert "llvm_ad_rgb  renders" in r.stdout and "libLLVM" in r.stdout and "torch" in r.stdout
+
+
+def _straight_fibers(ys_mm: list[float], radius_mm: float) -> FiberSet:
+    """Straight fibers along the generator axis z (the image's horizontal), at generator
+    x = y_mm (the image's vertical), built here without the generator."""
+    z = np.linspace(-8.0, 8.0, 9)
+    points = np.concatenate([np.column_stack([np.full_like(z, y), np.zeros_like(z), z])
+                             for y in ys_mm]).astype(np.float32)
+    k = len(ys_mm)
+    return FiberSet(points, np.arange(k + 1, dtype=np.int64) * len(z),
+                    np.full((k, 2), radius_mm, np.float32), np.zeros(k, np.uint8),
+                    np.zeros(k, np.int16))
+
+
+def test_backlit_setup_is_a_grey_translucent_silhouette_on_the_panel():
+    """The backlit scene, measured on straight fibers placed by hand: the background is the
+    panel's radiance; a fiber lets about ``1 - opacity`` of it through (plus the little light
+    it reflects), and two fibers one behind the other about ``(1 - opacity)^2``; a yarn
+    render is grey and its record names the setup."""
+    from ipm.render.scene import setup_options
+
+    opts = setup_options("backlit")
+    r = Renderer(options=opts)
+    scale = 0.5  # 0.02 mm per pixel: a 0.1 mm thick fiber covers 5 rows
+    fibers = _straight_fibers([0.0], 0.05)
+    image = r.render_fibers(fibers, (0.6, 0.3, 0.2), scale, spp=16).mean(-1)
+    h = image.shape[0]
+    panel = np.median(image[:10])
+    assert abs(panel - opts.panel) < 0.02 * opts.panel
+    centre = image[h // 2 - 1:h // 2 + 1, 50:-50].mean() / panel
+    assert 1 - opts.opacity <= centre <= 1 - opts.opacity + 0.15, centre
+    # a second fiber behind the first (generator y is the depth axis: world z)
+    pair = FiberSet(*(np.concatenate(a) for a in (
+        [fibers.points, fibers.points + np.float32([0, -0.3, 0])],
+        [fibers.offsets, fibers.offsets[1:] + fibers.offsets[-1]],
+        [fibers.radii] * 2, [fibers.kind] * 2, [fibers.ply] * 2)))
+    both = r.render_fibers(pair, (0.6, 0.3, 0.2), scale, spp=16).mean(-1)
+    centre2 = both[h // 2 - 1:h // 2 + 1, 50:-50].mean() / panel
+    assert (1 - opts.opacity) ** 2 <= centre2 < centre - 0.1, (centre2, centre)
+    # a yarn: grey, its core a dark band as thick as the parameters say (few flyaways)
+    p = preset("golden").replace(g=30)
+    yarn = r.render(p, seed=0, scale=0.25, spp=4, photometric=PhotometricRanges().draw(
+        np.random.default_rng(0)))
+    assert np.array_equal(yarn[..., 0], yarn[..., 1]) and np.array_equal(yarn[..., 1],
+                                                                          yarn[..., 2])
+    lum = yarn[..., 0]
+    rows = np.flatnonzero((lum < 0.5 * np.median(lum[:4])).mean(1) > 0.5)
+    assert len(rows) and rows.max() - rows.min() + 1 == len(rows)
+    px = pixel_size_mm(0.25)
+    lo, hi = 2 * (p.R_ply + p.r_y) / px, 2 * (p.R_ply + p.r_x) / px
+    assert 0.85 * lo <= len(rows) <= 1.1 * hi, (len(rows), lo, hi)
+    assert r.settings(0.25, 4, 0)["setup"] == "backlit"

@@ -131,6 +131,22 @@ class Ensemble:
             result[name] = net.predict(x.to(device)).mean(0).cpu().numpy()
         return result
 
+    def ply_counts(self, photo: Photo, crops: int = 3, most: int = 2, mass: float = 0.9
+                   ) -> tuple[int, ...]:
+        """The ply counts the ``n`` net finds most likely for ``photo``, most likely first:
+        at most ``most``, fewer once they hold ``mass`` of the probability (none without
+        an ``n`` net).  The search tries each (:func:`ipm.refine.fit.fit`)."""
+        net = self.chosen(photo.pixel_size_mm).get("n")
+        if net is None:
+            return ()
+        x = centre_crops(photo.at_pitch(net.config.input_scale, net.config.crop),
+                         net.config.crop, crops)
+        with torch.no_grad():
+            prob = net.predict(x.to(next(net.parameters()).device)).mean(0).cpu().numpy()
+        order = np.argsort(-prob, kind="stable")
+        keep = 1 + int(np.searchsorted(np.cumsum(prob[order]), mass))
+        return tuple(int(net.config.spec.classes[i]) for i in order[:max(1, min(most, keep))])
+
     def predict(self, photo: Photo, crops: int = 3, base: YarnParams | None = None
                 ) -> YarnParams:
         """The inferred parameters of ``photo``; fields no net decides come from ``base``."""

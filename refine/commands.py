@@ -12,7 +12,7 @@ import typer
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.io import check_not_inputs, check_same_settings, prepare_folder
 from ipm.progress import progress_bar
-from ipm.refine.search import SearchOptions
+from ipm.refine.search import DEFAULT_PLY_COUNTS, SearchOptions
 
 #: The search's defaults, one place for both commands: :class:`SearchOptions`.
 _DEFAULT = SearchOptions()
@@ -48,6 +48,10 @@ def fit(
                                              "knit.png, and a panel of compare.png")] = None,
     time_limit: Annotated[float | None, typer.Option("--time", help="wall-time bound of the "
                                                      "search, seconds")] = None,
+    ply_counts: Annotated[int, typer.Option(min=1, max=5, help="search with each of the "
+                                            "nets' N most likely ply counts and keep the "
+                                            "lowest loss (1: the nets' ply count only)")]
+    = DEFAULT_PLY_COUNTS,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = _DEFAULT.algorithm,
     params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = ",".join(_DEFAULT.params),
     prior: Annotated[bool, typer.Option("--prior/--no-prior", help="keep the search near the "
@@ -66,7 +70,7 @@ def fit(
 
     options = FitOptions(search=SearchOptions(params=_search_params(params),
                                               algorithm=algorithm, budget=budget,
-                                              time_s=time_limit))
+                                              time_s=time_limit), ply_counts=ply_counts)
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
                                          "params.json", "knit.png", "knit.json")], [photo])
     if knit is not None:
@@ -105,11 +109,13 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
     neural = ensemble.predict(shot)
     renderer = Renderer(variant)
     with progress_bar("renders, best loss {task.fields[best]}", transient=True) as bar:
-        task = bar.add_task("refining" if refine else "scoring", total=budget, best="-")
+        task = bar.add_task("refining" if refine else "scoring",
+                            total=budget * options.ply_counts, best="-")
         result = fit(shot, neural, renderer, options, refine,
                      on_eval=lambda i, loss, best: bar.update(task, completed=i,
                                                              best=f"{best:.4f}"),
-                     sigma=ensemble.sigma(pixel_size) if prior else None)
+                     sigma=ensemble.sigma(pixel_size) if prior else None,
+                     ply_counts=ensemble.ply_counts(shot, most=options.ply_counts))
     if w := ensemble.upsampling_warning(pixel_size):
         result.warnings.insert(0, w)
     for w in result.warnings:
@@ -165,6 +171,10 @@ def compare(
     = _DEFAULT.budget,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = _DEFAULT.algorithm,
     params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = ",".join(_DEFAULT.params),
+    ply_counts: Annotated[int, typer.Option(min=1, max=5, help="search with each of the "
+                                            "nets' N most likely ply counts and keep the "
+                                            "lowest loss (1: the nets' ply count only)")]
+    = DEFAULT_PLY_COUNTS,
     prior: Annotated[bool, typer.Option("--prior/--no-prior", help="MAP search around the "
                                         "nets' guess (see ipm fit)")] = True,
     invert: Annotated[bool, typer.Option("--invert", help="invert the photos first (backlit: "
@@ -185,7 +195,8 @@ def compare(
     from ipm.refine.fit import FitOptions
 
     options = FitOptions(search=SearchOptions(params=_search_params(params),
-                                              algorithm=algorithm, budget=budget))
+                                              algorithm=algorithm, budget=budget),
+                         ply_counts=ply_counts)
     listed = cmp.photos_in(photos, pixel_size, count)
     ensemble = Ensemble.load(models)
     prepare_folder(out)
@@ -194,6 +205,7 @@ def compare(
                 "algorithm": algorithm, "params": list(options.search.params), "prior": prior,
                 "invert": invert}
     settings |= {"blur_mm": blur_mm} if blur_mm else {}  # only when set: older folders resume
+    settings |= {"ply_counts": ply_counts} if ply_counts > 1 else {}  # (older: one)
     saved = out / "settings.json"
     check_same_settings(saved, settings, "a comparison")
     write_text(saved, json.dumps(settings, indent=2) + "\n")

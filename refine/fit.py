@@ -10,7 +10,7 @@ both results are means over the search seed and the re-scoring seeds, so they co
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -19,7 +19,7 @@ from ipm.errors import UserError
 from ipm.params import YarnParams
 from ipm.photo import Photo, linear_to_srgb, srgb_to_linear
 from ipm.refine.objective import RenderObjective, centre_crop, to_tensor
-from ipm.refine.search import SearchOptions, SearchResult, search
+from ipm.refine.search import DEFAULT_PLY_COUNTS, SearchOptions, SearchResult, search_ply_counts
 from ipm.refine.stats import centre_rows, yarn_centre, yarn_tilt
 from ipm.render.photometric import Photometric
 
@@ -33,13 +33,17 @@ MIN_CORE_CONTRAST = 0.03
 @dataclass(frozen=True)
 class FitOptions:
     """scale, spp: resolution and samples of the renders inside the search.  seeds_per_eval:
-    fiber seeds averaged per evaluation.  search: the NLopt options.  display_scale,
-    display_spp: the renders written for the user."""
+    fiber seeds averaged per evaluation.  search: the NLopt options.  ply_counts: how many
+    of the nets' most likely ply counts the search tries (each a search of its own: the
+    ply-stripe period the loss sees is ``alpha_ply / n``, so a wrong ``n`` makes the right
+    period a wrong ``alpha_ply``).  display_scale, display_spp: the renders written for the
+    user."""
 
     scale: float = 0.2
     spp: int = 4
     seeds_per_eval: int = 2
     search: SearchOptions = field(default_factory=SearchOptions)
+    ply_counts: int = DEFAULT_PLY_COUNTS
     display_scale: float = 0.5
     display_spp: int = 16
 
@@ -47,8 +51,8 @@ class FitOptions:
         if not 0.05 <= self.scale <= 1 or not 0.05 <= self.display_scale <= 1:
             raise UserError(f"scales must be in [0.05, 1], got {self.scale}, "
                             f"{self.display_scale}")
-        if self.spp < 1 or self.display_spp < 1 or self.seeds_per_eval < 1:
-            raise UserError("spp and seeds_per_eval must be >= 1")
+        if min(self.spp, self.display_spp, self.seeds_per_eval, self.ply_counts) < 1:
+            raise UserError("spp, seeds_per_eval and ply_counts must be >= 1")
 
 
 @dataclass
@@ -119,10 +123,12 @@ def match_colour(objective: RenderObjective, params: YarnParams, photo: np.ndarr
 
 def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOptions(),
         refine: bool = True, on_eval: Callable[[int, float, float], None] | None = None,
-        sigma: dict[str, float] | None = None) -> FitResult:
+        sigma: dict[str, float] | None = None, ply_counts: Sequence[int] = ()) -> FitResult:
     """Fit ``photo`` starting from the nets' parameters ``neural``; ``sigma``, the nets'
     error per parameter (:meth:`ipm.nets.ensemble.Ensemble.sigma`), makes the search a MAP
-    estimate around them (:mod:`ipm.refine.search`)."""
+    estimate around them (:mod:`ipm.refine.search`).  ``ply_counts``: the nets' likely ply
+    counts (:meth:`ipm.nets.ensemble.Ensemble.ply_counts`); the search runs from the nets'
+    guess with each of the first ``options.ply_counts`` of them and keeps the lowest loss."""
     t0 = time.perf_counter()
     warnings = [w for w in (exposure_warning(photo.image),) if w]
     small = photo.at_pitch(options.scale)
@@ -140,7 +146,8 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         loss = _mean_loss(objective, neural, options.search)
         return FitResult(neural, neural, loss, loss, False, warnings,
                          seconds=time.perf_counter() - t0, tilt_deg=tilt, sigma=sigma)
-    result = search(objective, neural, options.search, on_eval, sigma)
+    counts = list(dict.fromkeys([neural.n, *ply_counts]))[:options.ply_counts]
+    result = search_ply_counts(objective, neural, counts, options.search, on_eval, sigma)
     refined = match_colour(objective, result.best, small) if result.improved else neural
     if not result.improved:
         warnings.append("the search found no parameters with a lower loss than the nets' "

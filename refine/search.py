@@ -22,7 +22,7 @@ already get well (``R_ply``) away from them (docs/identifiability.md).
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import nlopt
@@ -33,6 +33,9 @@ from ipm.params import PAPER_INTERVALS, YarnParams
 
 #: An objective: the loss of the yarn ``params`` rendered with fiber seed ``seed``.
 Objective = Callable[[YarnParams, int], float]
+
+#: How many of the nets' most likely ply counts a fit searches with (``ipm.refine.fit``).
+DEFAULT_PLY_COUNTS = 2
 
 ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_L")
 
@@ -190,3 +193,28 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     return SearchResult(start=start, best=best, start_loss=scored[0][0], best_loss=best_loss,
                         improved=best is not start, trace=trace, evaluations=len(trace),
                         seconds=time.perf_counter() - t0)
+
+
+def search_ply_counts(objective: Objective, neural: YarnParams, counts: Sequence[int],
+                      opts: SearchOptions, on_eval: Callable[[int, float, float], None] | None,
+                      sigma: dict[str, float] | None) -> SearchResult:
+    """:func:`search` from ``neural`` with each ply count of ``counts`` (the nets' own
+    first); with several, the result with the lowest mean loss over the seeds wins, and it
+    counts as an improvement only if that loss is below the nets' guess's.  ``on_eval`` sees the
+    evaluations of all searches in one count."""
+    results: list[SearchResult] = []
+    for n in counts:
+        done = sum(r.evaluations for r in results)
+        results.append(search(objective, neural.replace(n=n), opts,
+                              on_eval and (lambda i, loss, best, done=done:
+                                           on_eval(done + i, loss, best)), sigma))
+    if len(results) == 1:
+        return results[0]
+    best = min(results, key=lambda r: r.best_loss)
+    start_loss = results[0].start_loss
+    return SearchResult(start=neural, best=best.best, start_loss=start_loss,
+                        best_loss=best.best_loss,
+                        improved=best.best != neural and best.best_loss < start_loss,
+                        trace=[x for r in results for x in r.trace],
+                        evaluations=sum(r.evaluations for r in results),
+                        seconds=sum(r.seconds for r in results))

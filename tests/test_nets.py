@@ -1,6 +1,8 @@
 """ipm.nets building blocks: smoke / cardinality / exception / gradcheck (kornia style),
 tasks, safetensors round trips and the exposure augmentation."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -338,3 +340,17 @@ def test_ensemble_picks_the_finest_net_the_photo_supplies(two_scale_models, pixe
     sigma = ens.sigma(pixel_size)["m"] / np.sqrt(np.pi / 2)
     assert sigma == pytest.approx(ens.info[m_net]["val"]["mae"]["m"])
     assert ens.upsampling_warning(pixel_size) is None or pixel_size > 0.05
+
+
+def test_ply_counts_are_the_n_nets_most_likely_classes_first():
+    from ipm.nets.ensemble import Ensemble
+    from ipm.photo import Photo, pixel_size_of
+
+    ens = Ensemble.load(None)
+    path = Path(__file__).parents[1] / "examples" / "golden.png"
+    photo = Photo.read(path, pixel_size_of(path, None, None))
+    counts = ens.ply_counts(photo, most=5, mass=1.0)
+    assert sorted(counts) == [2, 3, 4, 5, 6] and counts[0] == ens.predict(photo).n
+    assert ens.ply_counts(photo, most=2) == counts[:len(ens.ply_counts(photo, most=2))]
+    assert len(ens.ply_counts(photo, most=2)) in (1, 2)
+    assert ens.ply_counts(photo, most=5, mass=0.0) == counts[:1]

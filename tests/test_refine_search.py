@@ -6,7 +6,7 @@ import pytest
 from ipm.errors import UserError
 from ipm.params import PAPER_INTERVALS
 from ipm.presets import preset
-from ipm.refine.search import ALGORITHMS, SearchOptions, search, search_box
+from ipm.refine.search import ALGORITHMS, SearchOptions, search, search_box, search_ply_counts
 
 TRUTH = preset("golden")
 NAMES = ("alpha", "alpha_ply", "R_ply")
@@ -113,3 +113,26 @@ def test_prior_follows_a_loss_that_is_sure():
 def test_prior_needs_every_sigma():
     with pytest.raises(UserError, match="prior sigma for R_ply"):
         search(quadratic, TRUTH, SearchOptions(params=NAMES), sigma={"alpha": 1, "alpha_ply": 1})
+
+
+def test_ply_counts_each_searched_and_the_lowest_loss_kept():
+    """The loss sees the stripe period alpha_ply / n: with the nets' n wrong, the search
+    with the right n among the candidates finds the truth and wins; the nets' n alone fits
+    the period with a wrong alpha_ply."""
+    def period(p, seed):
+        return ((p.alpha_ply / p.n - TRUTH.alpha_ply / TRUTH.n) / 0.1) ** 2 + 1e-4 * (seed % 3) \
+            + (0.0 if p.n == TRUTH.n else 0.05)
+
+    start = TRUTH.replace(n=TRUTH.n + 1, alpha_ply=TRUTH.alpha_ply + 1.0)
+    opts = SearchOptions(params=("alpha_ply",), budget=30)
+    seen = []
+    res = search_ply_counts(period, start, [start.n, TRUTH.n, 6], opts,
+                            lambda i, loss, best: seen.append(i), None)
+    assert res.improved and res.best.n == TRUTH.n and res.start is start
+    assert abs(res.best.alpha_ply - TRUTH.alpha_ply) < 0.05
+    assert seen == list(range(1, res.evaluations + 1))  # one count over the searches
+    alone = search_ply_counts(period, start, [start.n], opts, None, None)
+    assert alone.best.n == start.n and abs(alone.best.alpha_ply - TRUTH.alpha_ply) > 1.0
+    # when no count beats the nets' guess, the guess stays
+    kept = search_ply_counts(period, TRUTH, [TRUTH.n, 2], opts, None, None)
+    assert not kept.improved or kept.best.n == TRUTH.n

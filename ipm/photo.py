@@ -161,6 +161,10 @@ def to_scene_pitch(img: np.ndarray, pixel_size_mm: float, scale: float = 1.0) ->
 #: Below this contrast (the largest range of the row or column medians of the difference
 #: from the border's level) a photo shows no yarn: a blank, a uniform or a noise image.
 NO_YARN_CONTRAST = 0.02
+#: The least a photo must show, (across, along the yarn) in mm at the yarn: a fine yarn's
+#: core with some of its flyaways and a few of its ply periods.  Less is refused; more, if
+#: still less than the nets' input, is padded across and pooled along (:meth:`Photo.at_pitch`).
+MIN_VIEW_MM = (1.0, 3.0)
 
 
 def yarn_layout(gray: np.ndarray) -> tuple[float, float]:
@@ -206,18 +210,31 @@ class Photo:
     def at_pitch(self, scale: float = 1.0, min_size: tuple[int, int] | None = None
                  ) -> np.ndarray:
         """The image resampled to the scene's pixel pitch at ``scale``
-        (:func:`to_scene_pitch`).  ``min_size`` = (H, W) needed after resampling (e.g. the
-        nets' input crop); a smaller photo raises a :class:`UserError` that says how many
-        photo pixels are needed at this pixel size."""
+        (:func:`to_scene_pitch`).  ``min_size`` = (H, W), the nets' input: a photo that
+        shows less than :data:`MIN_VIEW_MM` raises a one-line :class:`UserError` saying how
+        many photo pixels are needed at this pixel size; one with fewer than H rows is
+        padded above and below with its background (the median of its outer rows), as if
+        the camera had seen more of the backdrop (flyaways that reach beyond it are lost);
+        one narrower than W stays so (the nets pool along the yarn)."""
         img = to_scene_pitch(self.image, self.pixel_size_mm, scale)
-        if min_size is not None and (img.shape[0] < min_size[0] or img.shape[1] < min_size[1]):
-            factor = pitch_factor(self.pixel_size_mm, scale)
-            need_w, need_h = (int(np.ceil(v / factor)) for v in (min_size[1], min_size[0]))
-            h, w = self.image.shape[:2]
-            raise UserError(f"{self.name} ({w}x{h} px) is too small: at "
-                            f"{self.pixel_size_mm:g} mm per pixel the nets need a photo of at "
-                            f"least {need_w}x{need_h} px ({min_size[1] * PIXEL_SIZE_MM / scale:g}"
-                            f" x {min_size[0] * PIXEL_SIZE_MM / scale:g} mm of yarn)")
+        if min_size is None:
+            return img
+        h, w = self.image.shape[:2]
+        seen = (h * self.pixel_size_mm, w * self.pixel_size_mm)
+        if seen[0] < MIN_VIEW_MM[0] or seen[1] < MIN_VIEW_MM[1]:
+            need_w, need_h = (int(np.ceil(v / self.pixel_size_mm)) for v in MIN_VIEW_MM[::-1])
+            raise UserError(f"{self.name} ({w}x{h} px) is too small: at {self.pixel_size_mm:g}"
+                            f" mm per pixel it shows {seen[1]:.3g} x {seen[0]:.3g} mm of yarn; "
+                            f"ipm needs at least {MIN_VIEW_MM[1]:g} x {MIN_VIEW_MM[0]:g} mm "
+                            f"({need_w}x{need_h} px)")
+        missing = min_size[0] - img.shape[0]
+        if missing > 0:
+            edge = max(1, img.shape[0] // 10)
+            background = np.median(np.concatenate([img[:edge], img[-edge:]]).reshape(-1, 3),
+                                   axis=0).astype(img.dtype)
+            above = missing // 2
+            img = np.concatenate([np.broadcast_to(background, (above, img.shape[1], 3)), img,
+                                  np.broadcast_to(background, (missing - above, img.shape[1], 3))])
         return img
 
     def upright(self) -> tuple[Photo, str | None]:

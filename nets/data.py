@@ -116,6 +116,9 @@ class Crops(Dataset):
     def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor]:
         img = self.frames[i]
         (ch, cw), (h, w) = self.crop, img.shape[:2]
+        if w < cw:  # training batches need one crop size
+            raise UserError(f"{self.frames.records[i].image}: {w} px wide at the nets' pitch, "
+                            f"narrower than their training crop of {cw} px")
         ev, sigma = 0.0, 0.0
         if self.train:
             rng = np.random.default_rng([self.seed, self.epoch, i])
@@ -137,11 +140,14 @@ class Crops(Dataset):
 
 def centre_crops(img: np.ndarray, crop: tuple[int, int], count: int) -> torch.Tensor:
     """``count`` crops ``(count, 3, H, W)`` of an ``(H', W', 3)`` sRGB image, centred
-    vertically and evenly spaced along the yarn (the horizontal axis)."""
+    vertically and evenly spaced along the yarn (the horizontal axis); an image narrower
+    than the crop is one crop of its own width (the nets pool along the yarn)."""
     (ch, cw), (h, w) = crop, img.shape[:2]
-    if h < ch or w < cw:
-        raise UserError(f"image of {w}x{h} px at the nets' pitch is smaller than their "
-                        f"input of {cw}x{ch} px")
+    if h < ch:
+        raise UserError(f"image of {w}x{h} px at the nets' pitch is lower than their input "
+                        f"of {ch} rows (Photo.at_pitch pads it)")
+    if w < cw:
+        cw, count = w, 1
     top = (h - ch) // 2
     lefts = np.linspace(0, w - cw, count).round().astype(int) if count > 1 else [(w - cw) // 2]
     return torch.stack([to_input(img[top:top + ch, left:left + cw]) for left in lefts])

@@ -139,10 +139,31 @@ def test_to_scene_pitch_sizes():
 
 
 def test_photo_min_size(tmp_path):
-    photo = Photo.read(save(tmp_path, "a.png", Image.fromarray(RGB)), 0.01)
-    assert photo.at_pitch(1.0, min_size=(30, 40)).shape == (30, 40, 3)
-    with pytest.raises(UserError, match=r"a.png \(40x30 px\) is too small.*at least 80x60 px"):
-        photo.at_pitch(0.5, min_size=(30, 40))
+    """A view smaller than MIN_VIEW_MM is refused in one line naming the pixels needed."""
+    photo = Photo.read(save(tmp_path, "a.png", Image.fromarray(RGB)), 0.01)  # 0.4 x 0.3 mm
+    assert photo.at_pitch(1.0).shape == (30, 40, 3)
+    with pytest.raises(UserError, match=r"a.png \(40x30 px\) is too small: .* shows 0.4 x "
+                       r"0.3 mm .* at least 3 x 1 mm \(300x100 px\)"):
+        photo.at_pitch(1.0, min_size=(30, 40))
+
+
+def test_a_tight_crop_is_padded_across_and_kept_narrow_along():
+    """The issue's example: 800x240 px at 0.0167 mm (13.3 x 4 mm, less than the nets'
+    12 x 5.84 mm in height) is padded above and below with its background; a 4 mm wide
+    photo stays 4 mm wide and gives one crop of its width."""
+    from ipm.nets.data import centre_crops
+
+    rng = np.random.default_rng(0)
+    img = np.full((240, 800, 3), 0.1, np.float32) + 0.01 * rng.random((240, 800, 3), np.float32)
+    img[100:140] = 0.8  # the yarn's core
+    padded = Photo(img, 0.0167).at_pitch(0.25, (146, 300))
+    assert padded.shape == (146, 334, 3)
+    core = np.flatnonzero(padded[..., 0].mean(1) > 0.5)
+    assert abs((core.min() + core.max()) / 2 - 72.5) < 1.5  # the yarn stays centred
+    assert np.allclose(padded[:20], np.median(img[:24].reshape(-1, 3), 0), atol=0.006)
+    narrow = Photo(img[:, :240], 0.0167).at_pitch(0.25, (146, 300))  # 4 mm of yarn
+    assert narrow.shape == (146, 100, 3)
+    assert centre_crops(narrow, (146, 300), 3).shape == (1, 3, 146, 100)
 
 
 def test_photo_inverted_and_defocused():

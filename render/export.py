@@ -20,7 +20,8 @@ from ipm.render.variant import mitsuba
 #: The XML element of each plugin type used by :func:`scene_dict`.
 _TAGS = {"path": "integrator", "orthographic": "sensor", **dict.fromkeys(SAMPLERS, "sampler"),
          "hdrfilm": "film", "box": "rfilter", "linearcurve": "shape", "rectangle": "shape",
-         "principled": "bsdf", "diffuse": "bsdf", "mask": "bsdf", "area": "emitter", "constant": "emitter"}
+         "principled": "bsdf", "diffuse": "bsdf", "mask": "bsdf", "area": "emitter",
+         "constant": "emitter"}
 
 
 def _value(name: str, v: Any, indent: str, top: bool = False) -> str:

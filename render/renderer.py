@@ -75,8 +75,8 @@ class Renderer:
         """What a saved image records about how it was rendered (JSON-ready)."""
         width, height = frame_size(scale)
         return {"scale": scale, "spp": spp, "render_seed": render_seed, "width": width,
-                "height": height, "pixel_size_mm": pixel_size_mm(scale), "setup": self.options.setup,
-                "variant": self.variant, "scene": asdict(self.options)}
+                "height": height, "pixel_size_mm": pixel_size_mm(scale),
+                "setup": self.options.setup, "variant": self.variant, "scene": asdict(self.options)}
 
     def _load(self, scale: float, curve_text: str, color: tuple[float, float, float],
               to_world: np.ndarray | None = None, frame: Frame | None = None) -> object:

@@ -4,15 +4,18 @@ interval, beside the predict-the-mean baseline (the mean training label, stored 
 net) and the paper's validation table; ply-count and thickness-class accuracy beside the
 majority class.  ``--blur-mm`` blurs every photo first (a Gaussian of that sigma in mm, in
 linear light: :meth:`ipm.photo.Photo.defocused`), to see how the nets hold up on a
-photo with the defocus a render lacks.
+photo with the defocus a render lacks.  ``--view-mm W H`` cuts every photo to its central
+W x H mm first, to see how the nets hold on a tighter field of view than theirs (12 x 5.84
+mm): :meth:`ipm.photo.Photo.at_pitch` pads the rows and the nets pool along the yarn.
 
     python -m ipm.benchmarks.nets_accuracy --data data/test [--models DIR] [--blur-mm S]
-        [--out benchmarks/results/nets_accuracy.md]
+        [--view-mm W H] [--out benchmarks/results/nets_accuracy.md]
 """
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 
 import numpy as np
 
@@ -26,6 +29,16 @@ from ipm.params import (
     RAW_CONTINUOUS,
     THICKNESS_CLASSES,
 )
+from ipm.photo import Photo
+
+
+def central_view(photo: Photo, width_mm: float, height_mm: float) -> Photo:
+    """The photo cut to its central ``width_mm`` x ``height_mm``."""
+    h, w = photo.image.shape[:2]
+    ch, cw = (min(n, round(mm / photo.pixel_size_mm)) for n, mm in ((h, height_mm),
+                                                                    (w, width_mm)))
+    top, left = (h - ch) // 2, (w - cw) // 2
+    return replace(photo, image=photo.image[top:top + ch, left:left + cw])
 
 
 def main() -> None:
@@ -35,13 +48,18 @@ def main() -> None:
     ap.add_argument("--crops", type=int, default=3)
     ap.add_argument("--blur-mm", type=float, default=0.0, help="sigma of a Gaussian blur of "
                     "every photo, in mm at the yarn")
+    ap.add_argument("--view-mm", type=float, nargs=2, default=None, metavar=("W", "H"),
+                    help="cut every photo to its central W x H mm first")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     ens = Ensemble.load(args.models)
     records = read_manifest(args.data)
     if not 0 <= args.blur_mm <= 1:
         ap.error(f"--blur-mm must be in [0, 1] mm, got {args.blur_mm}")
-    pred = [ens.predict(r.photo().defocused(args.blur_mm), args.crops) for r in records]
+    photos = [r.photo().defocused(args.blur_mm) for r in records]
+    if args.view_mm:
+        photos = [central_view(p, *args.view_mm) for p in photos]
+    pred = [ens.predict(p, args.crops) for p in photos]
     true = [r.params for r in records]
     pairs = list(zip(pred, true, strict=True))
     base = ens.mean_prediction(records[0].pixel_size_mm)  # a dataset has one scale
@@ -67,11 +85,15 @@ def main() -> None:
              f"(majority class {100 * maj_t:.1f}%).", "",
              f"{len(records)} images from `{args.data}`"
              + (f", blurred by a Gaussian of sigma {args.blur_mm:g} mm" if args.blur_mm else "")
+             + (", cut to their central {:g} x {:g} mm".format(*args.view_mm)
+                if args.view_mm else "")
              + f"; models `{ens.folder}`; {args.crops} crops per net.  Bold: the continuous "
              "raw-yarn parameters, which must beat the baseline by at least 40%."]
     command = " ".join(["python -m ipm.benchmarks.nets_accuracy --data", args.data]
                        + (["--models", args.models] if args.models else [])
                        + (["--blur-mm", f"{args.blur_mm:g}"] if args.blur_mm else [])
+                       + (["--view-mm", *(f"{v:g}" for v in args.view_mm)]
+                          if args.view_mm else [])
                        + (["--out", args.out] if args.out else []))
     text = (markdown_header("Nets accuracy on held-out renders", command, "torch") + "\n"
             + "\n".join(rows) + "\n")

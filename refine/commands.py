@@ -17,12 +17,15 @@ from ipm.refine.search import DEFAULT_PLY_COUNTS, SearchOptions
 #: The search's defaults, one place for both commands: :class:`SearchOptions`.
 _DEFAULT = SearchOptions()
 
-_PARAMS_HELP = ("comma-separated continuous parameters to search (e.g. alpha_ply,R_ply); "
+_PARAMS_HELP = ("continuous parameters to search, comma-separated (alpha_ply,R_ply); "
+                "stages separated by ';' (alpha_ply;alpha: alpha from alpha_ply's best); "
                 "the others keep the nets' values")
 
 
-def _search_params(text: str) -> tuple[str, ...]:
-    return tuple(p.strip() for p in text.split(",") if p.strip())
+def _search_stages(text: str) -> dict[str, tuple]:
+    """``params`` and ``later`` of :class:`SearchOptions` from ``a,b;c``."""
+    stages = [tuple(p.strip() for p in part.split(",") if p.strip()) for part in text.split(";")]
+    return {"params": stages[0], "later": tuple(stages[1:])}
 
 
 def fit(
@@ -53,7 +56,8 @@ def fit(
                                             "lowest loss (1: the nets' ply count only)")]
     = DEFAULT_PLY_COUNTS,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = _DEFAULT.algorithm,
-    params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = ",".join(_DEFAULT.params),
+    params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = ";".join(
+        ",".join(stage) for stage in _DEFAULT.stages),
     prior: Annotated[bool, typer.Option("--prior/--no-prior", help="keep the search near the "
                                         "nets' guess, weighted by the nets' validation error "
                                         "(MAP); --no-prior: the image loss alone")] = True,
@@ -68,9 +72,9 @@ def fit(
     from ipm.photo import Photo, pixel_size_of
     from ipm.refine.fit import FitOptions
 
-    options = FitOptions(search=SearchOptions(params=_search_params(params),
-                                              algorithm=algorithm, budget=budget,
-                                              time_s=time_limit), ply_counts=ply_counts)
+    options = FitOptions(search=SearchOptions(**_search_stages(params), algorithm=algorithm,
+                                              budget=budget, time_s=time_limit),
+                         ply_counts=ply_counts)
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
                                          "params.json", "knit.png", "knit.json")], [photo])
     if knit is not None:
@@ -110,7 +114,8 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
     renderer = Renderer(variant)
     with progress_bar("renders, best loss {task.fields[best]}", transient=True) as bar:
         task = bar.add_task("refining" if refine else "scoring",
-                            total=budget * options.ply_counts, best="-")
+                            total=budget * len(options.search.stages) * options.ply_counts,
+                            best="-")
         result = fit(shot, neural, renderer, options, refine,
                      on_eval=lambda i, loss, best: bar.update(task, completed=i,
                                                              best=f"{best:.4f}"),
@@ -170,7 +175,8 @@ def compare(
     budget: Annotated[int, typer.Option(help="objective evaluations of each search")]
     = _DEFAULT.budget,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = _DEFAULT.algorithm,
-    params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = ",".join(_DEFAULT.params),
+    params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = ";".join(
+        ",".join(stage) for stage in _DEFAULT.stages),
     ply_counts: Annotated[int, typer.Option(min=1, max=5, help="search with each of the "
                                             "nets' N most likely ply counts and keep the "
                                             "lowest loss (1: the nets' ply count only)")]
@@ -194,9 +200,8 @@ def compare(
     from ipm.refine import compare as cmp
     from ipm.refine.fit import FitOptions
 
-    options = FitOptions(search=SearchOptions(params=_search_params(params),
-                                              algorithm=algorithm, budget=budget),
-                         ply_counts=ply_counts)
+    options = FitOptions(search=SearchOptions(**_search_stages(params), algorithm=algorithm,
+                                              budget=budget), ply_counts=ply_counts)
     listed = cmp.photos_in(photos, pixel_size, count)
     ensemble = Ensemble.load(models)
     prepare_folder(out)
@@ -206,6 +211,8 @@ def compare(
                 "invert": invert}
     settings |= {"blur_mm": blur_mm} if blur_mm else {}  # only when set: older folders resume
     settings |= {"ply_counts": ply_counts} if ply_counts > 1 else {}  # (older: one)
+    later = options.search.later
+    settings |= {"later_stages": [list(s) for s in later]} if later else {}
     saved = out / "settings.json"
     check_same_settings(saved, settings, "a comparison")
     write_text(saved, json.dumps(settings, indent=2) + "\n")

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import nlopt
 import numpy as np
@@ -52,7 +52,9 @@ class SearchOptions:
     search (re-scoring comes on top).  time_s: wall-time bound of the search.  width:
     half-width of the box around the start, as a fraction of each parameter's prior range.
     fiber_seed: the seed of the search's objective; rescore_seeds, rescore_top: the
-    re-scoring described in the module doc."""
+    re-scoring described in the module doc.  later: further stages, each a tuple of
+    parameters searched (with the same algorithm and budget) from the stage before's best
+    (:func:`search_stages`); ``stages`` is all of them."""
 
     params: tuple[str, ...] = ("alpha_ply",)
     algorithm: str = "GN_DIRECT_L"
@@ -64,19 +66,26 @@ class SearchOptions:
     rescore_top: int = 3
     prior_weight: float = 1.0
     box_sigmas: float = 3.0
+    later: tuple[tuple[str, ...], ...] = ()
+
+    @property
+    def stages(self) -> tuple[tuple[str, ...], ...]:
+        return (self.params, *self.later)
 
     def __post_init__(self) -> None:
-        bad = [p for p in self.params if p not in PAPER_INTERVALS or PAPER_INTERVALS[p].integer]
-        if bad or not self.params:
+        names = [p for stage in self.stages for p in stage]
+        bad = [p for p in names if p not in PAPER_INTERVALS or PAPER_INTERVALS[p].integer]
+        if bad or not all(self.stages):
             allowed = [k for k, iv in PAPER_INTERVALS.items() if not iv.integer]
             raise UserError(f"cannot search {bad or 'no parameters'}: choose among the "
                             f"continuous parameters {', '.join(allowed)}")
         if self.algorithm not in ALGORITHMS:
             raise UserError(f"unknown algorithm {self.algorithm!r}; choose one of "
                             f"{', '.join(ALGORITHMS)}")
-        if self.budget < 2 * len(self.params) + 2:
-            raise UserError(f"budget must be at least {2 * len(self.params) + 2} evaluations "
-                            f"for {len(self.params)} parameters, got {self.budget}")
+        most = max(len(stage) for stage in self.stages)
+        if self.budget < 2 * most + 2:
+            raise UserError(f"budget must be at least {2 * most + 2} evaluations for "
+                            f"{most} parameters, got {self.budget}")
         if not 0 < self.width <= 1:
             raise UserError(f"width must be in (0, 1], got {self.width}")
         if self.time_s is not None and not (np.isfinite(self.time_s) and self.time_s > 0):
@@ -195,26 +204,54 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
                         seconds=time.perf_counter() - t0)
 
 
+def _combined(start: YarnParams, results: list[SearchResult], best: SearchResult,
+              improved: bool) -> SearchResult:
+    """One result of several searches: ``start``'s loss from the first, ``best``'s
+    parameters and loss, every evaluation."""
+    return SearchResult(start=start, best=best.best, start_loss=results[0].start_loss,
+                        best_loss=best.best_loss, improved=improved,
+                        trace=[x for r in results for x in r.trace],
+                        evaluations=sum(r.evaluations for r in results),
+                        seconds=sum(r.seconds for r in results))
+
+
+def _offset(on_eval: Callable[[int, float, float], None] | None, results: list[SearchResult]
+            ) -> Callable[[int, float, float], None] | None:
+    """``on_eval`` counting on after the evaluations of ``results``."""
+    done = sum(r.evaluations for r in results)
+    return on_eval and (lambda i, loss, best: on_eval(done + i, loss, best))
+
+
+def search_stages(objective: Objective, start: YarnParams, opts: SearchOptions = SearchOptions(),
+                  on_eval: Callable[[int, float, float], None] | None = None,
+                  sigma: dict[str, float] | None = None) -> SearchResult:
+    """:func:`search` of each of ``opts.stages`` in turn, each from the stage before's best
+    (a staged search: the parameters the loss sees most first).  Improved if any stage
+    moved away from its start."""
+    results: list[SearchResult] = []
+    current = start
+    for names in opts.stages:
+        stage = replace(opts, params=names, later=())
+        results.append(search(objective, current, stage, _offset(on_eval, results), sigma))
+        current = results[-1].best
+    if len(results) == 1:
+        return results[0]
+    return _combined(start, results, results[-1], any(r.improved for r in results))
+
+
 def search_ply_counts(objective: Objective, neural: YarnParams, counts: Sequence[int],
                       opts: SearchOptions, on_eval: Callable[[int, float, float], None] | None,
                       sigma: dict[str, float] | None) -> SearchResult:
-    """:func:`search` from ``neural`` with each ply count of ``counts`` (the nets' own
+    """:func:`search_stages` from ``neural`` with each ply count of ``counts`` (the nets' own
     first); with several, the result with the lowest mean loss over the seeds wins, and it
     counts as an improvement only if that loss is below the nets' guess's.  ``on_eval`` sees the
     evaluations of all searches in one count."""
     results: list[SearchResult] = []
     for n in counts:
-        done = sum(r.evaluations for r in results)
-        results.append(search(objective, neural.replace(n=n), opts,
-                              on_eval and (lambda i, loss, best, done=done:
-                                           on_eval(done + i, loss, best)), sigma))
+        results.append(search_stages(objective, neural.replace(n=n), opts,
+                                     _offset(on_eval, results), sigma))
     if len(results) == 1:
         return results[0]
     best = min(results, key=lambda r: r.best_loss)
-    start_loss = results[0].start_loss
-    return SearchResult(start=neural, best=best.best, start_loss=start_loss,
-                        best_loss=best.best_loss,
-                        improved=best.best != neural and best.best_loss < start_loss,
-                        trace=[x for r in results for x in r.trace],
-                        evaluations=sum(r.evaluations for r in results),
-                        seconds=sum(r.seconds for r in results))
+    return _combined(neural, results, best,
+                     best.best != neural and best.best_loss < results[0].start_loss)

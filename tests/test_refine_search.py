@@ -6,7 +6,14 @@ import pytest
 from ipm.errors import UserError
 from ipm.params import PAPER_INTERVALS
 from ipm.presets import preset
-from ipm.refine.search import ALGORITHMS, SearchOptions, search, search_box, search_ply_counts
+from ipm.refine.search import (
+    ALGORITHMS,
+    SearchOptions,
+    search,
+    search_box,
+    search_ply_counts,
+    search_stages,
+)
 
 TRUTH = preset("golden")
 NAMES = ("alpha", "alpha_ply", "R_ply")
@@ -136,3 +143,21 @@ def test_ply_counts_each_searched_and_the_lowest_loss_kept():
     # when no count beats the nets' guess, the guess stays
     kept = search_ply_counts(period, TRUTH, [TRUTH.n, 2], opts, None, None)
     assert not kept.improved or kept.best.n == TRUTH.n
+
+
+def test_staged_search_starts_each_stage_from_the_one_before():
+    """alpha_ply, then alpha from alpha_ply's best: both reach the truth, the evaluations
+    count on across the stages, and a stage with an empty parameter list is refused."""
+    start = TRUTH.replace(alpha=TRUTH.alpha - 1.5, alpha_ply=TRUTH.alpha_ply + 2.0)
+    seen = []
+    opts = SearchOptions(params=("alpha_ply",), later=(("alpha",),), budget=30)
+    res = search_stages(quadratic, start, opts, lambda i, loss, best: seen.append(i))
+    assert opts.stages == (("alpha_ply",), ("alpha",))
+    assert res.improved and res.start is start and res.best_loss < res.start_loss
+    for k in ("alpha", "alpha_ply"):
+        assert abs(getattr(res.best, k) - getattr(TRUTH, k)) < 0.01 * PAPER_INTERVALS[k].width
+    assert seen == list(range(1, res.evaluations + 1)) and res.evaluations > 30
+    one = search_stages(quadratic, start, SearchOptions(params=("alpha_ply",), budget=30))
+    assert one.best.alpha == start.alpha  # a single stage leaves alpha alone
+    with pytest.raises(UserError):
+        SearchOptions(params=("alpha_ply",), later=((),))

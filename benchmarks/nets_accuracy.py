@@ -41,6 +41,21 @@ def central_view(photo: Photo, width_mm: float, height_mm: float) -> Photo:
     return replace(photo, image=photo.image[top:top + ch, left:left + cw])
 
 
+def alpha_signal(pairs: list) -> str:
+    """What the fiber-twist net follows: the correlation of its alpha with the true alpha,
+    with the fiber helix angle gamma (``tan gamma = -alpha / (2 pi r_x)``, the sampler's
+    auxiliary variable, which sets the fibers' slant in the image) and with the ply radius
+    r_x (``alpha`` scales with it)."""
+    pred, true = (np.array([x.alpha for x in xs]) for xs in zip(*pairs, strict=True))
+    r_x = np.array([t.r_x for _, t in pairs])
+    gamma = np.arctan(-true / (2 * np.pi * r_x))
+    c = [np.corrcoef(pred, v)[0, 1] for v in (true, -gamma, -r_x)]
+    return (f"The alpha net: correlation of its alpha with the true alpha {c[0]:.2f}, with "
+            f"the fiber helix angle gamma {c[1]:.2f}, with r_x {c[2]:.2f} (the true alpha's "
+            f"with gamma {np.corrcoef(true, -gamma)[0, 1]:.2f}, with r_x "
+            f"{np.corrcoef(true, -r_x)[0, 1]:.2f}).")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", required=True, help="held-out set (`ipm generate --out`)")
@@ -76,6 +91,7 @@ def main() -> None:
         rows.append(f"| {name} | {mae:.4g} {iv.unit} | {100 * mae / span:.1f} | {b:.4g} | "
                     f"{100 * b / span:.1f} | {100 * (1 - mae / b):+.0f}% | "
                     f"{PAPER_VALIDATION_MAE.get(k, '')} |")
+    rows += ["", alpha_signal(pairs)]
     acc_n = np.mean([p.n == t.n for p, t in pairs])
     acc_t = np.mean([p.thickness == t.thickness for p, t in pairs])
     maj_n = max(np.mean([t.n == c for t in true]) for c in range(2, 7))

@@ -25,6 +25,7 @@ from ipm.errors import UserError
 from ipm.io import write_text
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
 from ipm.photo import Photo
+from ipm.refine.search import LEVEL
 
 #: The continuous raw-yarn parameters the reports compare, neural vs refined (the search
 #: refines those of :class:`ipm.refine.search.SearchOptions`; the others keep the nets').
@@ -76,7 +77,8 @@ def fit_row(record: Record, photo: Photo, neural: YarnParams, renderer, options,
             "refined": res.refined.to_dict(), "loss_neural": res.loss_neural,
             "loss_refined": res.loss_refined, "improved": bool(res.improved),
             "tilt_deg": res.tilt_deg, "warnings": res.warnings,
-            "trace": res.search.trace if res.search else [], "seconds": res.seconds}
+            "trace": res.search.trace if res.search else [], "seconds": res.seconds,
+            "intervals": {k: list(v) for k, v in res.intervals().items()}}
 
 
 def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Photo],
@@ -139,6 +141,13 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None]) -> dict:
         b = float(np.mean([abs(r["refined"][k] - getattr(t, k)) for r, t in labelled]))
         out["params"][k] = {"neural": a, "refined": b,
                             "change_pct": 100 * (b / a - 1) if a > 0 else 0.0}
+        held = [(r["intervals"][k], getattr(t, k)) for r, t in labelled
+                if k in r.get("intervals", {})]
+        if held:
+            out["params"][k] |= {
+                "interval_holds": float(np.mean([lo <= v <= hi for (lo, hi, _), v in held])),
+                "interval_width": float(np.mean([hi - lo for (lo, hi, _), _ in held])),
+                "interval_source": held[0][0][2]}
     return out
 
 
@@ -170,13 +179,18 @@ def markdown(s: dict, rows: list[dict], command: str, figure: str | None) -> str
              f"for {s['improved']}; fit time per photo: median "
              f"{s['fit_seconds_median']:.3g} s." if rows else "No photos fitted.", ""]
     if s["params"]:
-        lines += ["Errors against the labels (MAE; % of the parameter's range):", "",
-                  "| parameter | neural | refined | change |", "|---|---|---|---|"]
+        lines += ["Errors against the labels (MAE; % of the parameter's range), and how often "
+                  f"the refined result's {LEVEL:.0%} interval holds the truth (its mean "
+                  "width in % of the range; where it comes from):", "",
+                  "| parameter | neural | refined | change | interval holds the truth | "
+                  "width | from |", "|---|---|---|---|---|---|---|"]
         for k, v in s["params"].items():
             width = PAPER_INTERVALS[k].width
+            held = (f"{v['interval_holds']:.0%} | {100 * v['interval_width'] / width:.1f}% | "
+                    f"{v['interval_source']}" if "interval_holds" in v else " | | ")
             lines.append(f"| {k} | {v['neural']:.4g} ({100 * v['neural'] / width:.1f}%) | "
                          f"{v['refined']:.4g} ({100 * v['refined'] / width:.1f}%) | "
-                         f"{v['change_pct']:+.0f}% |")
+                         f"{v['change_pct']:+.0f}% | {held} |")
         lines.append("")
     lines += ["| photo | loss neural | loss refined | improved |", "|---|---|---|---|"]
     lines += [f"| {Path(r['image']).name} | {r['loss_neural']:.4f} | {r['loss_refined']:.4f} "

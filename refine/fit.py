@@ -14,12 +14,19 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
+from scipy.stats import norm
 
 from ipm.errors import UserError
-from ipm.params import YarnParams
+from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
 from ipm.photo import Photo, linear_to_srgb, srgb_to_linear
 from ipm.refine.objective import RenderObjective, centre_crop, to_tensor
-from ipm.refine.search import DEFAULT_PLY_COUNTS, SearchOptions, SearchResult, search_ply_counts
+from ipm.refine.search import (
+    DEFAULT_PLY_COUNTS,
+    LEVEL,
+    SearchOptions,
+    SearchResult,
+    search_ply_counts,
+)
 from ipm.refine.stats import centre_rows, yarn_centre, yarn_tilt
 from ipm.render.photometric import Photometric
 
@@ -68,11 +75,29 @@ class FitResult:
     tilt_deg: float = 0.0
     sigma: dict[str, float] | None = None
 
+    def intervals(self) -> dict[str, tuple[float, float, str]]:
+        """A :data:`LEVEL` interval per continuous raw-yarn parameter of the refined result,
+        and where it comes from: the search's profile for the parameters it searched
+        (:func:`ipm.refine.search.profile_intervals`), the nets' validation error as a
+        Gaussian around the value for the others (none without ``sigma``)."""
+        out: dict[str, tuple[float, float, str]] = {}
+        searched = self.search.intervals if self.search else {}
+        z = float(norm.ppf(0.5 + LEVEL / 2))
+        for k in RAW_CONTINUOUS:
+            v, iv = getattr(self.refined, k), PAPER_INTERVALS[k]
+            if k in searched:
+                out[k] = (*searched[k], "search profile")
+            elif self.sigma and k in self.sigma:
+                out[k] = (max(iv.lo, v - z * self.sigma[k]), min(iv.hi, v + z * self.sigma[k]),
+                          "nets' validation error")
+        return out
+
     def to_dict(self, options: FitOptions, pixel_size_mm: float) -> dict:
         return {
             "neural": self.neural.to_dict(), "refined": self.refined.to_dict(),
             "loss": {"neural": self.loss_neural, "refined": self.loss_refined},
             "improved": self.improved, "warnings": self.warnings,
+            "intervals": {"level": LEVEL, **{k: list(v) for k, v in self.intervals().items()}},
             "evaluations": self.search.evaluations if self.search else 0,
             "seconds": round(self.seconds, 2),
             "settings": {**asdict(options), "pixel_size_mm": pixel_size_mm,

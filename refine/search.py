@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import nlopt
 import numpy as np
+from scipy.stats import chi2
 
 from ipm.errors import UserError
 from ipm.params import PAPER_INTERVALS, YarnParams
@@ -34,6 +35,11 @@ from ipm.params import PAPER_INTERVALS, YarnParams
 #: An objective: the loss of the yarn ``params`` rendered with fiber seed ``seed``.
 Objective = Callable[[YarnParams, int], float]
 
+#: The probability the intervals are meant to hold the truth with.
+LEVEL = 0.8
+#: How far above its lowest the objective (in seed-noise units) may lie inside an interval:
+#: half the LEVEL quantile of a chi-square of one degree of freedom.
+PROFILE_RISE = 0.5 * float(chi2.ppf(LEVEL, 1))
 #: How many of the nets' most likely ply counts a fit searches with (``ipm.refine.fit``).
 DEFAULT_PLY_COUNTS = 2
 
@@ -105,6 +111,7 @@ class SearchResult:
     trace: list[float] = field(default_factory=list)  # objective value per evaluation
     evaluations: int = 0
     seconds: float = 0.0
+    intervals: dict[str, tuple[float, float]] = field(default_factory=dict)  # LEVEL, profile
 
 
 def _finite(loss: float) -> float:
@@ -164,6 +171,9 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     def posterior(loss: float, p: YarnParams) -> float:
         return loss if sigma is None else loss / noise + penalty(p)
 
+    def in_noise_units(loss: float, p: YarnParams) -> float:
+        return loss / noise + penalty(p)
+
     def to_params(u: np.ndarray) -> YarnParams:
         vals = lo + np.clip(u, 0, 1) * span
         return start.replace(**{k: float(np.clip(v, PAPER_INTERVALS[k].lo, PAPER_INTERVALS[k].hi))
@@ -173,7 +183,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
         p = to_params(u)
         loss = _finite(objective(p, opts.fiber_seed))
         trace.append(loss)
-        seen[tuple(np.round(u, 6))] = (posterior(loss, p), loss, p)
+        seen[tuple(np.round(u, 6))] = (posterior(loss, p), loss, p, in_noise_units(loss, p))
         if on_eval:
             on_eval(len(trace), loss, min(trace))
         return posterior(loss, p)
@@ -197,22 +207,36 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     scored = [(float(np.mean(start_losses)), start)]
     scored += [(float(np.mean([loss, *(_finite(objective(p, s))
                                         for s in opts.rescore_seeds)])), p)
-               for _, loss, p in candidates]
+               for _, loss, p, _ in candidates]
     best_loss, best = min(scored, key=lambda lp: posterior(*lp))
     return SearchResult(start=start, best=best, start_loss=scored[0][0], best_loss=best_loss,
                         improved=best is not start, trace=trace, evaluations=len(trace),
-                        seconds=time.perf_counter() - t0)
+                        seconds=time.perf_counter() - t0,
+                        intervals=profile_intervals(names, [(z, p) for *_, p, z in
+                                                            seen.values()], best))
+
+
+def profile_intervals(names: tuple[str, ...], evaluated: list[tuple[float, YarnParams]],
+                      best: YarnParams) -> dict[str, tuple[float, float]]:
+    """Per parameter, the range of its values over the ``evaluated`` (objective, params)
+    within :data:`PROFILE_RISE` of the lowest objective, widened to hold ``best``."""
+    low = min(z for z, _ in evaluated)
+    inside = [p for z, p in evaluated if z <= low + PROFILE_RISE]
+    return {k: (min(getattr(best, k), *(getattr(p, k) for p in inside)),
+                max(getattr(best, k), *(getattr(p, k) for p in inside))) for k in names}
 
 
 def _combined(start: YarnParams, results: list[SearchResult], best: SearchResult,
               improved: bool) -> SearchResult:
     """One result of several searches: ``start``'s loss from the first, ``best``'s
     parameters and loss, every evaluation."""
+    intervals = {k: v for r in results if r.best.n == best.best.n
+                 for k, v in r.intervals.items()}
     return SearchResult(start=start, best=best.best, start_loss=results[0].start_loss,
                         best_loss=best.best_loss, improved=improved,
                         trace=[x for r in results for x in r.trace],
                         evaluations=sum(r.evaluations for r in results),
-                        seconds=sum(r.seconds for r in results))
+                        seconds=sum(r.seconds for r in results), intervals=intervals)
 
 
 def _offset(on_eval: Callable[[int, float, float], None] | None, results: list[SearchResult]

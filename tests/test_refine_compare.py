@@ -98,3 +98,16 @@ def test_photo_prep_blurs_in_mm_and_inverts(dataset):
     assert np.allclose(PhotoPrep(invert=True).load(photo).image, 1 - sharp)
     with pytest.raises(UserError, match="blur must be in"):
         PhotoPrep(blur_mm=2.0)
+
+
+def test_summary_counts_how_often_the_intervals_hold_the_truth():
+    from ipm.presets import preset
+    from ipm.refine.compare import summary
+
+    truth = [preset("golden"), preset("rose")]
+    rows = [{"neural": t.to_dict(), "refined": t.to_dict(), "improved": False, "seconds": 1.0,
+             "intervals": {"alpha_ply": [t.alpha_ply + d, t.alpha_ply + d + 1.0, "search"]}}
+            for t, d in zip(truth, (-0.5, 0.5), strict=True)]
+    s = summary(rows, truth)["params"]
+    assert s["alpha_ply"]["interval_holds"] == 0.5 and s["alpha_ply"]["interval_width"] == 1.0
+    assert "interval_holds" not in s["alpha"]

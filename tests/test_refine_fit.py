@@ -57,6 +57,14 @@ def test_fit_refine_writes_everything_and_does_not_get_worse(models, photo, tmp_
     assert neural.n == refined.n and neural.m == refined.m  # discrete parameters: the nets'
     assert result["settings"]["search"]["params"] == ["r_y", "alpha_ply"]
     assert neural.R_ply == refined.R_ply and neural.r_x == refined.r_x  # not searched
+    # an 80% interval per continuous parameter, holding the refined value
+    intervals = result["intervals"]
+    assert intervals["level"] == 0.8
+    for k in ("m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply"):
+        lo, hi, source = intervals[k]
+        assert lo <= getattr(refined, k) <= hi, k
+        assert source == ("search profile" if k in ("r_y", "alpha_ply")
+                          else "nets' validation error"), k
 
 
 def test_bad_search_params_one_line(models, photo, tmp_path):

@@ -161,3 +161,29 @@ def test_staged_search_starts_each_stage_from_the_one_before():
     assert one.best.alpha == start.alpha  # a single stage leaves alpha alone
     with pytest.raises(UserError):
         SearchOptions(params=("alpha_ply",), later=((),))
+
+
+def test_profile_interval_is_where_the_objective_stays_near_its_lowest():
+    """On a quadratic objective in noise units, z = ((x - x0) / s)^2 / 2, the points within
+    PROFILE_RISE of the lowest span x0 +- s * sqrt(2 PROFILE_RISE) = x0 +- 1.28 s: the
+    Gaussian 80% interval; the best value is always inside."""
+    from ipm.refine.search import LEVEL, PROFILE_RISE, profile_intervals
+
+    x0, s = TRUTH.alpha_ply, 0.5
+    xs = np.linspace(x0 - 3, x0 + 3, 601)
+    evaluated = [(0.5 * ((x - x0) / s) ** 2, TRUTH.replace(alpha_ply=float(x))) for x in xs]
+    lo, hi = profile_intervals(("alpha_ply",), evaluated, TRUTH)["alpha_ply"]
+    z = np.sqrt(2 * PROFILE_RISE)
+    assert LEVEL == 0.8 and z == pytest.approx(1.2816, abs=1e-3)
+    assert lo == pytest.approx(x0 - z * s, abs=0.011) and hi == pytest.approx(x0 + z * s,
+                                                                              abs=0.011)
+    far = TRUTH.replace(alpha_ply=x0 + 2.9)
+    assert profile_intervals(("alpha_ply",), evaluated, far)["alpha_ply"][1] == far.alpha_ply
+
+
+def test_search_reports_an_interval_per_searched_parameter():
+    start = TRUTH.replace(alpha_ply=TRUTH.alpha_ply + 1.0)
+    res = search(quadratic, start, SearchOptions(params=("alpha_ply",), budget=30),
+                 sigma={"alpha_ply": 1.0})
+    lo, hi = res.intervals["alpha_ply"]
+    assert lo <= res.best.alpha_ply <= hi and set(res.intervals) == {"alpha_ply"}

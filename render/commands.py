@@ -202,6 +202,10 @@ def generate(
     photometric: Annotated[bool, typer.Option(help="vary exposure, white balance, yarn shift "
                                               "and rotation and sensor noise per sample "
                                               "(seeded, recorded in the manifest)")] = True,
+    vary_look: Annotated[bool, typer.Option("--vary-look", help="also vary the lamps' and "
+                                            "the backdrop's strength, defocus, vignetting, "
+                                            "tone curve and JPEG compression per sample, so "
+                                            "that nets do not learn one look")] = False,
     variant: VariantOpt = None,
     setup: SetupOpt = "frontlit",
     ray: Annotated[str | None, typer.Option(help="render on Ray instead of a local pool: "
@@ -223,10 +227,13 @@ def generate(
     from ipm.render.scene import setup_options
 
     spp_min, spp_max = spp_range(spp) if spp is not None else (DEFAULT_SPP, None)
+    if vary_look and not photometric:
+        raise UserError("--vary-look varies the photometric capture; drop --no-photometric")
     opts = GenerateOptions(count=count, seed=seed, split=split,
                            scale=DEFAULT_SCALE if scale is None else scale,
                            spp=spp_min, spp_max=spp_max,
-                           photometric=PhotometricRanges() if photometric else NO_VARIATION,
+                           photometric=(PhotometricRanges(look=vary_look) if photometric
+                                        else NO_VARIATION),
                            scene=setup_options(setup))
     with progress_bar("{task.fields[rate]}") as bar:
         task = bar.add_task(f"{split} -> {out}", total=count, rate="")

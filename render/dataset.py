@@ -66,6 +66,11 @@ def spp_range(text: str) -> tuple[int, int | None]:
     return spp, spp_max
 
 
+#: Settings added after datasets were made without them, and the value they had implicitly.
+_ADDED_LATER = {"scene": {"setup": "frontlit", "panel": 0.6, "opacity": 0.5},
+                "photometric": {"look": False}}
+
+
 @dataclass(frozen=True)
 class GenerateOptions:
     """One dataset: ``count`` samples of ``split`` from master ``seed``.
@@ -98,11 +103,17 @@ class GenerateOptions:
         frame_size(self.scale)
 
     def settings(self) -> dict[str, Any]:
-        """Everything a sample's bytes depend on (``count`` aside): JSON-ready."""
+        """Everything a sample's bytes depend on (``count`` aside): JSON-ready.  Settings
+        added later are recorded only when they differ from what was implicit before them
+        (:data:`_ADDED_LATER`), so that a dataset made before them still resumes."""
         d = asdict(self)
         del d["count"]
         if self.spp_max is None:  # as recorded before sample-count ranges existed
             del d["spp_max"]
+        for group, implicit in _ADDED_LATER.items():
+            for k, v in implicit.items():
+                if d[group].get(k) == v:
+                    del d[group][k]
         return json.loads(json.dumps(d))
 
 
@@ -198,13 +209,14 @@ def _init_worker(variant: str | None, scene: SceneOptions, threads: int) -> None
 def make_sample(folder: str, opts: GenerateOptions, index: int) -> Record:
     """Render sample ``index`` into ``folder`` (atomically) and return its manifest record.
     Runs in a worker process (its :class:`Renderer` is made by the pool initializer)."""
-    from ipm.render.renderer import save_png
+    from ipm.photo import write_png
+    from ipm.render.photometric import encode
 
     plan = sample_plan(opts, index)
     spp = _renderer.sample_count(opts.scale, plan.spp)
     image = _renderer.render(plan.params, plan.fiber_seed, opts.scale, spp, plan.render_seed,
                              plan.photometric)
-    save_png(Path(folder, image_name(index)), image)
+    write_png(Path(folder, image_name(index)), encode(image, plan.photometric))
     width, height = frame_size(opts.scale)
     return Record(Path(folder, image_name(index)), pixel_size_mm(opts.scale), plan.params,
                   plan.fiber_seed, setup=opts.scene.setup, index=index, info={

@@ -3,18 +3,24 @@
 A :class:`PhotometricRanges` says how much variation a dataset gets; ``draw(rng)`` picks one
 :class:`Photometric` per sample, which the manifest records (``to_dict``) so that a sample can
 be re-rendered bit for bit.  The yarn's shift and rotation act on the geometry (the renderer
-places the fibers with them); exposure, white balance and sensor noise act on the linear
-image (:func:`apply_to_image`).
+places the fibers with them); the lights' and the backdrop's strength on the scene (through
+``mi.traverse``, :func:`ipm.render.scene.scaled_options`); exposure, white balance, defocus,
+vignetting and sensor noise on the linear image (:func:`apply_to_image`); a camera's tone
+curve and JPEG compression on the encoded 8-bit image (:func:`encode`).  The later
+variations (lights, backdrop, defocus, vignetting, tone, JPEG) are off unless a dataset asks
+for them (``ipm generate --vary-look``), so datasets made before them stay as they were.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+import io
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from ipm.errors import UserError
+from ipm.photo import defocus, linear_to_srgb
 
 
 @dataclass(frozen=True)
@@ -33,6 +39,12 @@ class Photometric:
     rotation_deg: float = 0.0
     noise: tuple[float, float] = (0.0, 0.0)
     noise_seed: int = 0
+    light_gain: float = 1.0
+    backdrop_gain: float = 1.0
+    blur_mm: float = 0.0
+    vignetting: float = 0.0
+    gamma: float = 1.0
+    jpeg_quality: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
@@ -54,7 +66,8 @@ class PhotometricRanges:
 
     exposure_stops: +-stops.  white_balance: +-relative gain of red and blue against green.
     shift_mm: +-mm in x and y.  rotation_deg: +-degrees.  noise_a, noise_b: upper bounds of
-    the Poisson (gain) and Gaussian (read) noise terms, drawn in [0, bound].
+    the Poisson (gain) and Gaussian (read) noise terms, drawn in [0, bound].  look: whether
+    to vary the rest as :data:`LOOK` says (lights, backdrop, defocus, vignetting, tone, JPEG).
     """
 
     exposure_stops: float = 0.3
@@ -63,6 +76,7 @@ class PhotometricRanges:
     rotation_deg: float = 1.5
     noise_a: float = 2e-3
     noise_b: float = 1e-5
+    look: bool = False
 
     def __post_init__(self) -> None:
         values = {"exposure_stops": self.exposure_stops, "white_balance": self.white_balance,
@@ -79,23 +93,55 @@ class PhotometricRanges:
         wb_r, wb_b = 1 + self.white_balance * u[1], 1 + self.white_balance * u[2]
         gains = np.array([wb_r, 1.0, wb_b]) * 3 / (wb_r + 1 + wb_b)
         noise = rng.uniform(0.0, 1.0, size=2) * (self.noise_a, self.noise_b)
-        return Photometric(
+        drawn = Photometric(
             exposure_stops=float(self.exposure_stops * u[0]),
             white_balance=tuple(float(g) for g in gains),
             shift_mm=(float(self.shift_mm[0] * u[3]), float(self.shift_mm[1] * u[4])),
             rotation_deg=float(self.rotation_deg * u[5]),
             noise=(float(noise[0]), float(noise[1])),
             noise_seed=int(rng.integers(0, 2**31 - 1)))
+        if not self.look:  # drawn after the rest, which stays as it was without it
+            return drawn
+        look = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in LOOK.items()}
+        look["jpeg_quality"] = int(round(look["jpeg_quality"])) if rng.random() < 0.5 else 0
+        return replace(drawn, **look)
 
 
 NO_VARIATION = PhotometricRanges(0.0, 0.0, (0.0, 0.0), 0.0, 0.0, 0.0)
+#: The ranges of the look's variations (uniform; JPEG on half of the images).
+LOOK: dict[str, tuple[float, float]] = {
+    "light_gain": (0.6, 1.6), "backdrop_gain": (0.3, 3.0), "blur_mm": (0.0, 0.04),
+    "vignetting": (0.0, 0.3), "gamma": (0.8, 1.25), "jpeg_quality": (60, 95)}
 
 
-def apply_to_image(image: np.ndarray, ph: Photometric) -> np.ndarray:
-    """Exposure, white balance and sensor noise on a linear image (H, W, 3) -> float32 copy."""
+def apply_to_image(image: np.ndarray, ph: Photometric, pixel_size_mm: float = 0.04
+                   ) -> np.ndarray:
+    """Exposure, white balance, defocus (``pixel_size_mm`` converts it to pixels),
+    vignetting and sensor noise on a linear image (H, W, 3) -> float32 copy."""
     out = image * (2.0 ** ph.exposure_stops * np.asarray(ph.white_balance))
+    if ph.blur_mm > 0:
+        out = defocus(out, ph.blur_mm / pixel_size_mm)
+    if ph.vignetting > 0:
+        h, w = out.shape[:2]
+        y, x = np.mgrid[0:h, 0:w]
+        r2 = ((x - (w - 1) / 2) ** 2 + (y - (h - 1) / 2) ** 2) / ((w / 2) ** 2 + (h / 2) ** 2)
+        out = out * (1 - ph.vignetting * r2)[..., None]
     a, b = ph.noise
     if a > 0 or b > 0:
         rng = np.random.default_rng(ph.noise_seed)
         out = out + np.sqrt(a * np.maximum(out, 0) + b) * rng.standard_normal(out.shape)
     return np.maximum(out, 0).astype(np.float32)
+
+
+def encode(image: np.ndarray, ph: Photometric) -> np.ndarray:
+    """A linear image (H, W, 3) as the camera writes it: 8-bit sRGB, its tone curve
+    (``gamma``) and, if asked, a JPEG round trip."""
+    srgb = np.clip(linear_to_srgb(image), 0, 1) ** ph.gamma
+    out = np.round(srgb * 255).astype(np.uint8)
+    if ph.jpeg_quality:
+        from PIL import Image
+
+        buf = io.BytesIO()
+        Image.fromarray(out).save(buf, format="JPEG", quality=ph.jpeg_quality)
+        out = np.asarray(Image.open(io.BytesIO(buf.getvalue())).convert("RGB"))
+    return out

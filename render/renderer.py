@@ -28,7 +28,9 @@ from ipm.render.scene import (
     albedo_parameter,
     fiber_albedo,
     frame_size,
+    look_parameters,
     pixel_size_mm,
+    scaled_options,
     scene_dict,
     yarn_to_world,
 )
@@ -79,7 +81,8 @@ class Renderer:
                 "setup": self.options.setup, "variant": self.variant, "scene": asdict(self.options)}
 
     def _load(self, scale: float, curve_text: str, color: tuple[float, float, float],
-              to_world: np.ndarray | None = None, frame: Frame | None = None) -> object:
+              to_world: np.ndarray | None = None, frame: Frame | None = None,
+              options: SceneOptions | None = None) -> object:
         with tempfile.TemporaryDirectory(prefix="ipm-scene-") as tmp:
             curves = Path(tmp, "curves.txt")
             curves.write_text(curve_text)
@@ -88,8 +91,9 @@ class Renderer:
             # process to process, and with them swapped the emitter sampling gives the same
             # random numbers to the other lamp: about one process in eight rendered every
             # image with other noise (benchmarks/determinism.py)
-            return self.mi.load_dict(scene_dict(scale, 1, str(curves), color, self.options,
-                                                to_world, frame), parallel=False, optimize=False)
+            return self.mi.load_dict(scene_dict(scale, 1, str(curves), color,
+                                                options or self.options, to_world, frame),
+                                     parallel=False, optimize=False)
 
     def _scene(self, scale: float, frame: Frame | None = None) -> tuple[object, object]:
         key = (scale, frame)
@@ -114,17 +118,20 @@ class Renderer:
 
     def render_fibers(self, fibers: FiberSet, color: tuple[float, float, float], scale: float,
                       spp: int, render_seed: int = 0, to_world: np.ndarray | None = None,
-                      frame: Frame | None = None) -> np.ndarray:
+                      frame: Frame | None = None, gains: tuple[float, float] = (1.0, 1.0)
+                      ) -> np.ndarray:
         """Linear RGB image (H, W, 3) float32 of ``fibers`` (generator frame) with albedo
         ``color``, placed by ``to_world`` (default: :func:`yarn_to_world` centred), in the
-        yarn frame at ``scale`` or in ``frame``."""
+        yarn frame at ``scale`` or in ``frame``, its lamps and card scaled by ``gains``
+        (:func:`ipm.render.scene.scaled_options`)."""
         if spp < 1:
             raise ValueError(f"spp must be >= 1, got {spp}")
         frame_size(scale)  # validates the scale
         to_world = yarn_to_world() if to_world is None else to_world
+        look = scaled_options(self.options, *gains)
         if self.variant.startswith("scalar"):
             # no kernels to keep, and scalar buffers cannot change size: load the yarn anew
-            scene = self._load(scale, fibers.mitsuba_curve_text(), color, to_world, frame)
+            scene = self._load(scale, fibers.mitsuba_curve_text(), color, to_world, frame, look)
         else:
             scene, params = self._scene(scale, frame)
             points, segments = world_curves(fibers, to_world)
@@ -133,6 +140,8 @@ class Renderer:
             params["yarn.control_point_count"] = len(points)
             params[albedo_parameter(self.options)] = self.mi.Color3f(
                 *fiber_albedo(color, self.options))
+            for key, value in look_parameters(look).items():  # every time: scenes are kept
+                params[key] = self.mi.Color3f(value, value, value)
             params.update()
         image = self.mi.render(scene, spp=spp, seed=render_seed)
         return np.array(image, dtype=np.float32)[..., :3]
@@ -144,9 +153,10 @@ class Renderer:
         photo is grey (a monochrome sensor: the channels' mean in all three)."""
         to_world = yarn_to_world(photometric.shift_mm, photometric.rotation_deg)
         image = self.render_fibers(generate(params, seed), params.color, scale, spp,
-                                   render_seed, to_world)
+                                   render_seed, to_world,
+                                   gains=(photometric.light_gain, photometric.backdrop_gain))
         if photometric != NOMINAL:
-            image = apply_to_image(image, photometric)
+            image = apply_to_image(image, photometric, pixel_size_mm(scale))
         if self.options.setup == "backlit":
             image = np.repeat(image.mean(axis=-1, keepdims=True), 3, axis=-1)
         return image

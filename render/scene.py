@@ -55,7 +55,7 @@ y -> world z: a cyclic permutation, so a rotation).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import ModuleType
 from typing import Any
 
@@ -151,6 +151,25 @@ SETUPS: dict[str, SceneOptions] = {
     "frontlit": DEFAULT_OPTIONS,
     "backlit": SceneOptions(setup="backlit", integrator="path", max_depth=16, room_light=0.05),
 }
+
+
+def scaled_options(opts: SceneOptions, light_gain: float = 1.0, backdrop_gain: float = 1.0
+                   ) -> SceneOptions:
+    """``opts`` with its lamps (soft boxes or panel) ``light_gain`` and its card's albedo
+    ``backdrop_gain`` times as strong: a capture's lights and backdrop
+    (:class:`ipm.render.photometric.Photometric`)."""
+    return replace(opts, key_light=opts.key_light * light_gain, panel=opts.panel * light_gain,
+                   backdrop=min(1.0, opts.backdrop * backdrop_gain))
+
+
+def look_parameters(opts: SceneOptions) -> dict[str, float]:
+    """The ``mi.traverse`` keys and grey values of ``opts``' lamps and card, so that a
+    loaded scene takes another :func:`scaled_options` without loading anew."""
+    if opts.setup == "backlit":
+        return {"panel.emitter.radiance.value": opts.panel}
+    return {"backdrop.bsdf.reflectance.value": opts.backdrop,
+            **{f"{name}.emitter.radiance.value": share * opts.key_light
+               for name, _, _, share in SOFT_BOXES}}
 
 
 def setup_options(name: str) -> SceneOptions:

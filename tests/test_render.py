@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -328,3 +329,52 @@ def test_backlit_setup_is_a_grey_translucent_silhouette_on_the_panel():
     lo, hi = 2 * (p.R_ply + p.r_y) / px, 2 * (p.R_ply + p.r_x) / px
     assert 0.85 * lo <= len(rows) <= 1.1 * hi, (len(rows), lo, hi)
     assert r.settings(0.25, 4, 0)["setup"] == "backlit"
+
+
+def test_look_variations_are_off_unless_asked_and_leave_the_other_draws_alone():
+    """--vary-look draws its variations after the others, so a dataset made without them
+    keeps every earlier value, and its settings record nothing new."""
+    from ipm.render.dataset import GenerateOptions
+    from ipm.render.photometric import LOOK
+
+    plain = PhotometricRanges().draw(np.random.default_rng(3))
+    varied = PhotometricRanges(look=True).draw(np.random.default_rng(3))
+    assert (plain.light_gain, plain.blur_mm, plain.gamma, plain.jpeg_quality) == (1, 0, 1, 0)
+    assert replace(varied, **{k: getattr(plain, k) for k in LOOK}) == plain
+    for k, (lo, hi) in LOOK.items():
+        if k != "jpeg_quality":
+            assert lo <= getattr(varied, k) <= hi, k
+    for k in ("exposure_stops", "white_balance", "shift_mm", "noise", "noise_seed"):
+        assert getattr(varied, k) == getattr(plain, k), k
+    settings = GenerateOptions(count=1).settings()
+    assert "look" not in settings["photometric"] and "setup" not in settings["scene"]
+    assert GenerateOptions(count=1, photometric=PhotometricRanges(look=True)).settings()[
+        "photometric"]["look"] is True
+
+
+def test_look_variations_act_on_scene_and_image(renderer):
+    """Lamps 1.5x brighten the yarn about 1.5x, a card 3x as light lifts the background
+    about 3x; vignetting darkens the corners by its amount, defocus removes fine detail, a
+    tone curve below 1 lifts the mid-tones and JPEG changes the bytes only a little."""
+    from ipm.render.photometric import encode
+
+    p = preset("golden").replace(g=30)
+    base = renderer.render(p, 0, 0.2, 8).mean(-1)
+    lamps = renderer.render(p, 0, 0.2, 8, photometric=Photometric(light_gain=1.5)).mean(-1)
+    card = renderer.render(p, 0, 0.2, 8, photometric=Photometric(backdrop_gain=3.0)).mean(-1)
+    h = base.shape[0]
+    core = slice(h // 2 - 3, h // 2 + 3)
+    assert 1.35 < lamps[core].mean() / base[core].mean() < 1.6
+    assert 2.5 < np.median(card[:5]) / np.median(base[:5]) < 3.2
+    assert np.array_equal(renderer.render(p, 0, 0.2, 8).mean(-1), base)  # the scene resets
+    flat = np.full((60, 100, 3), 0.5, np.float32)
+    vign = apply_to_image(flat, Photometric(vignetting=0.3))
+    assert vign[0, 0, 0] == pytest.approx(0.5 * 0.7, rel=0.02) and vign[30, 50, 0] > 0.49
+    sharp = renderer.render(p, 0, 0.2, 8)
+    blurred = apply_to_image(sharp, Photometric(blur_mm=0.05), pixel_size_mm=0.05)
+    assert np.abs(np.diff(blurred, axis=1)).mean() < 0.6 * np.abs(np.diff(sharp, axis=1)).mean()
+    mid = np.full((8, 8, 3), 0.2, np.float32)
+    assert encode(mid, Photometric(gamma=0.8)).mean() > encode(mid, NOMINAL).mean() + 10
+    jpeg = encode(sharp, Photometric(jpeg_quality=70)).astype(float)
+    png = encode(sharp, NOMINAL).astype(float)
+    assert not np.array_equal(jpeg, png) and np.abs(jpeg - png).mean() < 4

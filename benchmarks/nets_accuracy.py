@@ -41,6 +41,21 @@ def central_view(photo: Photo, width_mm: float, height_mm: float) -> Photo:
     return replace(photo, image=photo.image[top:top + ch, left:left + cw])
 
 
+def coverage(pairs: list, sigma: dict[str, float]) -> str:
+    """How often the 80% interval ``ipm fit`` gives a parameter the search did not touch
+    (:meth:`ipm.refine.fit.FitResult.intervals`: the nets' validation error as a Gaussian
+    around their value) holds the truth."""
+    from scipy.stats import norm
+
+    from ipm.refine.search import LEVEL
+
+    z = float(norm.ppf(0.5 + LEVEL / 2))
+    held = {k: np.mean([abs(getattr(p, k) - getattr(t, k)) <= z * sigma[k] for p, t in pairs])
+            for k in RAW_CONTINUOUS if k in sigma}
+    return (f"The nets' {LEVEL:.0%} intervals (their validation error as a Gaussian) hold the "
+            "truth for " + ", ".join(f"{k} {v:.0%}" for k, v in held.items()) + ".")
+
+
 def alpha_signal(pairs: list) -> str:
     """What the fiber-twist net follows: the correlation of its alpha with the true alpha,
     with the fiber helix angle gamma (``tan gamma = -alpha / (2 pi r_x)``, the sampler's
@@ -91,7 +106,7 @@ def main() -> None:
         rows.append(f"| {name} | {mae:.4g} {iv.unit} | {100 * mae / span:.1f} | {b:.4g} | "
                     f"{100 * b / span:.1f} | {100 * (1 - mae / b):+.0f}% | "
                     f"{PAPER_VALIDATION_MAE.get(k, '')} |")
-    rows += ["", alpha_signal(pairs)]
+    rows += ["", alpha_signal(pairs), "", coverage(pairs, ens.sigma(records[0].pixel_size_mm))]
     acc_n = np.mean([p.n == t.n for p, t in pairs])
     acc_t = np.mean([p.thickness == t.thickness for p, t in pairs])
     maj_n = max(np.mean([t.n == c for t in true]) for c in range(2, 7))

@@ -85,8 +85,8 @@ class FitResult:
         z = float(norm.ppf(0.5 + LEVEL / 2))
         for k in RAW_CONTINUOUS:
             v, iv = getattr(self.refined, k), PAPER_INTERVALS[k]
-            if k in searched:
-                out[k] = (*searched[k], "search profile")
+            if k in searched:  # widened to hold the value (the nets' when none was better)
+                out[k] = (min(v, searched[k][0]), max(v, searched[k][1]), "search profile")
             elif self.sigma and k in self.sigma:
                 out[k] = (max(iv.lo, v - z * self.sigma[k]), min(iv.hi, v + z * self.sigma[k]),
                           "nets' validation error")

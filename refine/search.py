@@ -48,11 +48,12 @@ ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_
 
 @dataclass(frozen=True)
 class SearchOptions:
-    """params: continuous parameters to search.  By default only alpha_ply, the one the
-    loss identifies (docs/identifiability.md), with DIRECT-L, a global search of the box:
-    the autocorrelation has side minima in alpha_ply that trap a local search such as
-    BOBYQA.  R_ply and the ply radii trade against each other in the core profile and the
-    loss cannot see alpha, so they keep the nets' values (measured in docs/compare*/).
+    """params: continuous parameters to search.  By default only alpha_ply, with DIRECT-L,
+    a global search of the box: the autocorrelation has side minima in alpha_ply that trap
+    a local search such as BOBYQA.  The loss also has its minimum at the truth for R_ply and
+    r_x (docs/identifiability.md), but a second stage searching them from alpha_ply's best
+    moved them further from the truth than the nets' values (docs/compare-staged), and the
+    loss does not see alpha, so they keep the nets' values.
 
     algorithm: an NLopt derivative-free algorithm.  budget: objective evaluations of the
     search (re-scoring comes on top).  time_s: wall-time bound of the search.  width:

@@ -40,8 +40,11 @@ LEVEL = 0.8
 #: How far above its lowest the objective (in seed-noise units) may lie inside an interval:
 #: half the LEVEL quantile of a chi-square of one degree of freedom.
 PROFILE_RISE = 0.5 * float(chi2.ppf(LEVEL, 1))
-#: How many of the nets' most likely ply counts a fit searches with (``ipm.refine.fit``).
-DEFAULT_PLY_COUNTS = 2
+#: How many of the nets' most likely ply counts a fit searches with (``ipm.refine.fit``):
+#: one, since the loss sees the stripe period ``alpha_ply / n`` and, given two counts, it
+#: matched the period with the wrong one as often as not (docs/compare-two-ply-counts
+#: against docs/compare).
+DEFAULT_PLY_COUNTS = 1
 
 ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_L")
 

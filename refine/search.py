@@ -31,6 +31,7 @@ from scipy.stats import chi2
 
 from ipm.errors import UserError
 from ipm.params import PAPER_INTERVALS, YarnParams
+from ipm.prior import GAMMA_DEG
 
 #: An objective: the loss of the yarn ``params`` rendered with fiber seed ``seed``.
 Objective = Callable[[YarnParams, int], float]
@@ -128,7 +129,8 @@ def search_box(start: YarnParams, names: tuple[str, ...], width: float,
                sigma: dict[str, float] | None = None, box_sigmas: float = 3.0
                ) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi) of the search around ``start``, inside the prior's box: ``width`` of each
-    range on either side, or ``box_sigmas * sigma[k]`` where that is narrower."""
+    range on either side, or ``box_sigmas * sigma[k]`` where that is narrower; ``alpha_ply``
+    searched without ``R_ply`` also within :func:`ply_pitch_range`."""
     lo, hi = [], []
     for k in names:
         iv = PAPER_INTERVALS[k]
@@ -136,9 +138,21 @@ def search_box(start: YarnParams, names: tuple[str, ...], width: float,
         if sigma is not None:
             half = min(half, box_sigmas * sigma[k])
         v = getattr(start, k)
-        lo.append(max(iv.lo, v - half))
-        hi.append(min(iv.hi, v + half))
+        a, b = (iv.lo, iv.hi)
+        if k == "alpha_ply" and "R_ply" not in names:
+            a, b = ply_pitch_range(start)
+        lo.append(min(v, max(iv.lo, a, v - half)))  # the start stays inside
+        hi.append(max(v, min(iv.hi, b, v + half)))
     return np.array(lo), np.array(hi)
+
+
+def ply_pitch_range(p: YarnParams) -> tuple[float, float]:
+    """The ply pitches the guided sampler gives a yarn of ``p``'s ply radius:
+    ``2 pi R_ply tan(gamma_ply)`` for helix angles in :data:`ipm.prior.GAMMA_DEG`.  Outside
+    it the stripe autocorrelation has side minima at a fraction of the true period that a
+    search would otherwise fall into (docs/compare)."""
+    lo, hi = (2 * np.pi * p.R_ply * np.tan(np.radians(g)) for g in GAMMA_DEG)
+    return float(lo), float(hi)
 
 
 def search(objective: Objective, start: YarnParams, opts: SearchOptions = SearchOptions(),

@@ -187,3 +187,19 @@ def test_search_reports_an_interval_per_searched_parameter():
                  sigma={"alpha_ply": 1.0})
     lo, hi = res.intervals["alpha_ply"]
     assert lo <= res.best.alpha_ply <= hi and set(res.intervals) == {"alpha_ply"}
+
+
+def test_the_ply_pitch_search_stays_in_the_samplers_helix_angles():
+    """alpha_ply searched alone stays within 2 pi R_ply tan(50..80 degrees), where the
+    stripe autocorrelation's side minima at a fraction of the period cannot trap it."""
+    from ipm.refine.search import ply_pitch_range
+
+    lo, hi = search_box(TRUTH, ("alpha_ply",), 1.0)
+    a, b = ply_pitch_range(TRUTH)
+    assert a == pytest.approx(2 * np.pi * TRUTH.R_ply * np.tan(np.radians(50)))
+    assert lo[0] == pytest.approx(a) and hi[0] == pytest.approx(b)
+    both = search_box(TRUTH, ("alpha_ply", "R_ply"), 1.0)[0]
+    assert both[0] == PAPER_INTERVALS["alpha_ply"].lo  # with R_ply searched too: the prior box
+    outside = TRUTH.replace(alpha_ply=0.9 * a)
+    lo, hi = search_box(outside, ("alpha_ply",), 0.1)
+    assert lo[0] <= outside.alpha_ply <= hi[0]  # a start outside it stays in the box

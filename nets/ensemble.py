@@ -116,13 +116,17 @@ class Ensemble:
                 f"({finest:g} mm): upsampled, so these parameters are less reliable")
 
     @torch.no_grad()
-    def outputs(self, photo: Photo, crops: int = 3) -> dict[str, np.ndarray]:
-        """Each net's output ``(K,)`` for ``photo``, averaged over ``crops`` crops."""
+    def outputs(self, photo: Photo, crops: int = 3, names: tuple[str, ...] | None = None
+                ) -> dict[str, np.ndarray]:
+        """Each net's output ``(K,)`` for ``photo``, averaged over ``crops`` crops (only the
+        nets ``names``, when given)."""
         if photo.image.ndim != 3 or photo.image.shape[2] != 3:
             raise ValueError(f"expected an (H, W, 3) image, got shape {photo.image.shape}")
         scaled: dict[float, np.ndarray] = {}
         result = {}
         for name, net in self.chosen(photo.pixel_size_mm).items():
+            if names is not None and name not in names:
+                continue
             s = net.config.input_scale
             if s not in scaled:
                 scaled[s] = photo.at_pitch(s, net.config.crop)
@@ -136,16 +140,13 @@ class Ensemble:
         """The ply counts the ``n`` net finds most likely for ``photo``, most likely first:
         at most ``most``, fewer once they hold ``mass`` of the probability (none without
         an ``n`` net).  The search tries each (:func:`ipm.refine.fit.fit`)."""
-        net = self.chosen(photo.pixel_size_mm).get("n")
-        if net is None:
+        prob = self.outputs(photo, crops, names=("n",)).get("n")
+        if prob is None:
             return ()
-        x = centre_crops(photo.at_pitch(net.config.input_scale, net.config.crop),
-                         net.config.crop, crops)
-        with torch.no_grad():
-            prob = net.predict(x.to(next(net.parameters()).device)).mean(0).cpu().numpy()
         order = np.argsort(-prob, kind="stable")
         keep = 1 + int(np.searchsorted(np.cumsum(prob[order]), mass))
-        return tuple(int(net.config.spec.classes[i]) for i in order[:max(1, min(most, keep))])
+        classes = self.chosen(photo.pixel_size_mm)["n"].config.spec.classes
+        return tuple(int(classes[i]) for i in order[:max(1, min(most, keep))])
 
     def predict(self, photo: Photo, crops: int = 3, base: YarnParams | None = None
                 ) -> YarnParams:

@@ -120,7 +120,8 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
                      on_eval=lambda i, loss, best: bar.update(task, completed=i,
                                                              best=f"{best:.4f}"),
                      sigma=ensemble.sigma(pixel_size) if prior else None,
-                     ply_counts=ensemble.ply_counts(shot, most=options.ply_counts))
+                     ply_counts=(ensemble.ply_counts(shot, most=options.ply_counts)
+                                 if options.ply_counts > 1 else ()))
     if w := ensemble.upsampling_warning(pixel_size):
         result.warnings.insert(0, w)
     for w in result.warnings:

@@ -234,7 +234,8 @@ def compare(photos: Sequence[Record], out: Path, ensemble, options, prior: bool 
     out.mkdir(parents=True, exist_ok=True)
     every = fit_all(out / FITS, photos, lambda i, photo: ensemble.predict(photo), options,
         ensemble.sigma(photos[0].pixel_size_mm) if prior and photos else None, prep,
-        progress, lambda photo: ensemble.ply_counts(photo, most=options.ply_counts))
+        progress, (lambda photo: ensemble.ply_counts(photo, most=options.ply_counts))
+        if options.ply_counts > 1 else None)
     fitted = [i for i, r in enumerate(every) if "error" not in r]
     rows, truth, photos = ([seq[i] for i in fitted] for seq in (every, truth, photos))
     s = summary(rows, truth)

@@ -43,15 +43,17 @@ def central_view(photo: Photo, width_mm: float, height_mm: float) -> Photo:
 
 def coverage(pairs: list, sigma: dict[str, float]) -> str:
     """How often the 80% interval ``ipm fit`` gives a parameter the search did not touch
-    (:meth:`ipm.refine.fit.FitResult.intervals`: the nets' validation error as a Gaussian
-    around their value) holds the truth."""
-    from scipy.stats import norm
-
+    (:func:`ipm.refine.fit.nets_interval`: the nets' validation error as a Gaussian around
+    their value) holds the truth."""
+    from ipm.refine.fit import nets_interval
     from ipm.refine.search import LEVEL
 
-    z = float(norm.ppf(0.5 + LEVEL / 2))
-    held = {k: np.mean([abs(getattr(p, k) - getattr(t, k)) <= z * sigma[k] for p, t in pairs])
-            for k in RAW_CONTINUOUS if k in sigma}
+    def holds(k: str, p, t) -> bool:
+        lo, hi = nets_interval(k, getattr(p, k), sigma[k])
+        return lo <= getattr(t, k) <= hi
+
+    held = {k: np.mean([holds(k, p, t) for p, t in pairs]) for k in RAW_CONTINUOUS
+            if k in sigma}
     return (f"The nets' {LEVEL:.0%} intervals (their validation error as a Gaussian) hold the "
             "truth for " + ", ".join(f"{k} {v:.0%}" for k, v in held.items()) + ".")
 

@@ -62,6 +62,14 @@ class FitOptions:
             raise UserError("spp, seeds_per_eval and ply_counts must be >= 1")
 
 
+def nets_interval(name: str, value: float, sigma: float) -> tuple[float, float]:
+    """The :data:`LEVEL` interval of parameter ``name`` around ``value`` for a Gaussian
+    error of ``sigma`` (the nets' validation error), within the parameter's interval."""
+    half = float(norm.ppf(0.5 + LEVEL / 2)) * sigma
+    iv = PAPER_INTERVALS[name]
+    return max(iv.lo, value - half), min(iv.hi, value + half)
+
+
 @dataclass
 class FitResult:
     neural: YarnParams
@@ -82,14 +90,12 @@ class FitResult:
         Gaussian around the value for the others (none without ``sigma``)."""
         out: dict[str, tuple[float, float, str]] = {}
         searched = self.search.intervals if self.search else {}
-        z = float(norm.ppf(0.5 + LEVEL / 2))
         for k in RAW_CONTINUOUS:
-            v, iv = getattr(self.refined, k), PAPER_INTERVALS[k]
+            v = getattr(self.refined, k)
             if k in searched:  # widened to hold the value (the nets' when none was better)
                 out[k] = (min(v, searched[k][0]), max(v, searched[k][1]), "search profile")
             elif self.sigma and k in self.sigma:
-                out[k] = (max(iv.lo, v - z * self.sigma[k]), min(iv.hi, v + z * self.sigma[k]),
-                          "nets' validation error")
+                out[k] = (*nets_interval(k, v, self.sigma[k]), "nets' validation error")
         return out
 
     def to_dict(self, options: FitOptions, pixel_size_mm: float) -> dict:

@@ -18,7 +18,7 @@ from ipm.refine.search import DEFAULT_PLY_COUNTS, SearchOptions
 _DEFAULT = SearchOptions()
 
 _PARAMS_HELP = ("continuous parameters to search, comma-separated (alpha_ply,R_ply); "
-                "stages separated by ';' (alpha_ply;alpha: alpha from alpha_ply's best); "
+                "stages separated by ';' (alpha_ply;R_ply,r_x: those from alpha_ply's best); "
                 "the others keep the nets' values")
 
 

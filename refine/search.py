@@ -186,11 +186,11 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
         z = [(getattr(p, k) - getattr(start, k)) / sigma[k] for k in names]
         return opts.prior_weight * 0.5 * float(np.sum(np.square(z)))
 
-    def posterior(loss: float, p: YarnParams) -> float:
-        return loss if sigma is None else loss / noise + penalty(p)
-
     def in_noise_units(loss: float, p: YarnParams) -> float:
         return loss / noise + penalty(p)
+
+    def posterior(loss: float, p: YarnParams) -> float:
+        return loss if sigma is None else in_noise_units(loss, p)
 
     def to_params(u: np.ndarray) -> YarnParams:
         vals = lo + np.clip(u, 0, 1) * span

@@ -52,6 +52,14 @@ def scene_values(setup: str, rng: np.random.Generator) -> dict:
     return v
 
 
+def _write_manifest(out: Path, records: dict, done: dict, finished: set) -> dict:
+    """Rewrite the manifest (atomically) with the images rendered so far, so that a killed
+    run resumes where it stopped."""
+    keep = {i: r for i, r in records.items() if i in done or str(out / r["image"]) in finished}
+    write_text(out / MANIFEST, "".join(json.dumps(keep[i]) + "\n" for i in sorted(keep)))
+    return keep
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--setup", choices=("frontlit", "backlit"), required=True)
@@ -101,12 +109,10 @@ def main() -> None:
                 if line.startswith("{"):
                     finished.add(json.loads(line)["png"])
                     print(f"{len(finished)}/{len(jobs)} {line.strip()}", flush=True)
+                    _write_manifest(out, records, done, finished)
             if proc.wait() != 0:
                 raise SystemExit(f"Blender failed: {proc.stderr.read().strip()[-500:]}")
-            keep = {i: r for i, r in records.items()
-                    if i in done or str(out / r["image"]) in finished}
-            records = keep
-    write_text(out / MANIFEST, "".join(json.dumps(records[i]) + "\n" for i in sorted(records)))
+    records = _write_manifest(out, records, done, finished if jobs else set())
     write_text(out / "dataset.json", json.dumps({"setup": args.setup, "renderer": "cycles",
                                                  "seed": SEED, "count": args.count,
                                                  "pixel_size_mm": PIXEL_SIZE_MM,

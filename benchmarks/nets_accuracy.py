@@ -84,8 +84,8 @@ def main() -> None:
                     help="cut every photo to its central W x H mm first")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
-    ens = Ensemble.load(args.models)
     records = read_manifest(args.data)
+    ens = Ensemble.load(args.models, setup=records[0].setup if records else None)
     if not 0 <= args.blur_mm <= 1:
         ap.error(f"--blur-mm must be in [0, 1] mm, got {args.blur_mm}")
     photos = [r.photo().defocused(args.blur_mm) for r in records]

@@ -10,8 +10,10 @@ import typer
 
 from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
+from ipm.render.commands import SetupOpt
 
-_MODELS_HELP = "folder with ensemble.json (an `ipm train --out`); default: the shipped models"
+_MODELS_HELP = ("folder with ensemble.json (an `ipm train --out`); default: the models "
+                "shipped for --setup")
 _PIXEL_HELP = (f"size of one photo pixel at the yarn in mm (the scene: {PIXEL_SIZE_MM}); "
                "the photo is rescaled to the nets' pixel pitch")
 
@@ -54,11 +56,18 @@ def train(
     blur: Annotated[float | None, typer.Option(help="blur each training crop by a Gaussian of "
                                                "sigma uniform in [0, BLUR] input pixels "
                                                "(a photo's defocus; 0 = off)")] = None,
+    look: Annotated[bool, typer.Option("--look", help="give each training crop another look: "
+                                       "colour, saturation, backdrop, noise, tone "
+                                       "(nets.data.LOOK_JITTER), so the nets read the yarn, "
+                                       "not one scene's look")] = False,
     init: Annotated[Path | None, typer.Option(help="start each net from the trained net of "
                                               "the same name in this folder (fine-tuning; "
                                               "e.g. the shipped models)")] = None,
+    setup: SetupOpt = "frontlit",
 ) -> None:
-    """Train the nets of a preset on a synthetic dataset (resumable; torchrun for DDP)."""
+    """Train the nets of a preset on a synthetic dataset (resumable; torchrun for DDP).  The
+    nets are for photos of one capture setup, that of the renders (--setup; recorded in
+    ensemble.json, and checked against the datasets' manifests)."""
     from ipm.nets.config import TrainConfig
     from ipm.nets.train import train as run
 
@@ -67,8 +76,8 @@ def train(
                  lambda_latent=lambda_latent, steps_per_epoch=steps_per_epoch, seed=seed,
                  device=device, workers=workers, real_pixel_size=real_pixel_size, init=init,
                  blur_px=blur)
-    options = {k: v for k, v in given.items() if v is not None}
-    options.update(data=data, val=val, out=out, preset=preset, real=real,
+    options = {k: v for k, v in given.items() if v is not None} | ({"look": True} if look else {})
+    options.update(data=data, val=val, out=out, preset=preset, real=real, setup=setup,
                    real_invert=real_invert,
                    nets=tuple(n.strip() for n in nets.split(",") if n.strip()) if nets else ())
     cfg = TrainConfig.paper(**options) if paper else TrainConfig(**options)
@@ -88,6 +97,7 @@ def predict(
     invert: Annotated[bool, typer.Option("--invert", help="invert the photo first (backlit: "
                                          "dark yarn on a light background)")] = False,
     device: Annotated[str, typer.Option(help="cpu | cuda")] = "cpu",
+    setup: SetupOpt = "frontlit",
 ) -> None:
     """Infer the yarn parameters from photos with the neural ensemble, in one process.  One
     photo: prints the parameters and writes them to --out as flat JSON (the form `ipm
@@ -100,7 +110,7 @@ def predict(
     files = [f for p in photos for f in (photo_files(p) if p.is_dir() else [p])]
     if not files:
         raise UserError(f"{', '.join(map(str, photos))} holds no photos")
-    cfg = PredictConfig(tuple(files), models, pixel_size, crops, invert, device)
+    cfg = PredictConfig(tuple(files), models, pixel_size, crops, invert, device, setup)
     single = len(photos) == 1 and not photos[0].is_dir()
     if single:
         targets = [out]
@@ -115,10 +125,10 @@ def predict(
     check_not_inputs([t for t in targets if t is not None], files)
     if not single:
         prepare_folder(out)
-    ensemble = _load(cfg.models, cfg.device)
+    ensemble = _load(cfg.models, cfg.device, cfg.setup)
     warning = ensemble.upsampling_warning(cfg.pixel_size)
     for file, target in zip(cfg.photos, targets, strict=True):
-        shot, note = Photo.read(file, cfg.pixel_size).upright()
+        shot, note = Photo.read(file, cfg.pixel_size, cfg.setup).upright()
         if note:
             typer.echo(f"note: {note}", err=True)
         params = ensemble.predict(shot.inverted() if cfg.invert else shot, cfg.crops)
@@ -169,7 +179,7 @@ def saliency(
     typer.echo(f"saliency of {param} -> {out}", err=True)
 
 
-def _load(models: Path | None, device: str):
+def _load(models: Path | None, device: str, setup: str | None = None):
     from ipm.nets.ensemble import Ensemble
 
-    return Ensemble.load(models, device)
+    return Ensemble.load(models, device, setup)

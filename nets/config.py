@@ -11,6 +11,7 @@ from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.nets.encoders import ENCODERS
 from ipm.nets.tasks import ENSEMBLE_TASKS, REG_TASKS, TASKS
+from ipm.render.scene import CAPTURE_SETUPS
 
 
 @dataclass(frozen=True)
@@ -73,6 +74,8 @@ class TrainConfig:
     sma_batches: int = 5
     exposure_ev: float = 0.5
     blur_px: float = 0.0
+    look: bool = False
+    setup: str = "frontlit"
     steps_per_epoch: int | None = None
     seed: int = 0
     device: str = "cpu"
@@ -110,6 +113,9 @@ class TrainConfig:
         for name, value, ok in checks:
             if not ok:
                 raise UserError(f"{name} = {value} is out of range")
+        if self.setup not in CAPTURE_SETUPS:
+            raise UserError(f"unknown capture setup {self.setup!r}; one of "
+                            f"{', '.join(CAPTURE_SETUPS)}")
         if self.schedule not in SCHEDULES:
             raise UserError(f"unknown schedule {self.schedule!r}; one of {', '.join(SCHEDULES)}")
         if self.device.split(":")[0] not in ("cpu", "cuda", "mps"):
@@ -138,7 +144,7 @@ class TrainConfig:
 @dataclass(frozen=True)
 class PredictConfig:
     """``ipm predict``: the photos, their pixel size at the yarn, the models, crops to
-    average."""
+    average, the photos' capture setup."""
 
     photos: tuple[Path, ...]
     models: Path | None = None
@@ -146,10 +152,14 @@ class PredictConfig:
     crops: int = 3
     invert: bool = False
     device: str = "cpu"
+    setup: str = "frontlit"
 
     def __post_init__(self) -> None:
         if not self.pixel_size > 0:
             raise UserError(f"pixel size must be positive, got {self.pixel_size}")
+        if self.setup not in CAPTURE_SETUPS:
+            raise UserError(f"unknown capture setup {self.setup!r}; one of "
+                            f"{', '.join(CAPTURE_SETUPS)}")
         if not 1 <= self.crops <= 64:
             raise UserError(f"crops must be in 1..64, got {self.crops}")
 

@@ -92,18 +92,45 @@ class Frames:
         return self._cache[i]
 
 
+#: The ranges of :func:`jitter_look` (uniform): per-channel gains (white balance and the
+#: fibers' hue), saturation (0: grey), a light offset (a brighter backdrop or fill),
+#: Poisson-like noise (variance ``noise * x``; a path tracer's sparkle or a sensor's shot
+#: noise) and a tone curve on the sRGB values.
+LOOK_JITTER: dict[str, tuple[float, float]] = {
+    "channel_gain": (0.6, 1.4), "saturation": (0.0, 1.5), "offset": (0.0, 0.08),
+    "noise": (0.0, 0.03), "gamma": (0.7, 1.4)}
+
+
+def jitter_look(linear: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Another look of the same yarn (:data:`LOOK_JITTER`), on a linear image ``(H, W, 3)``;
+    returns linear light.  Why: nets trained on one scene learn its look (its card, lamps,
+    colours and noise) and fail on another renderer's (``nets_accuracy`` on the Cycles set);
+    varying the look at training time is cheaper than rendering it and teaches the nets to
+    read the yarn's shape instead."""
+    r = {k: rng.uniform(lo, hi, size=3 if k == "channel_gain" else None)
+         for k, (lo, hi) in LOOK_JITTER.items()}
+    out = linear * r["channel_gain"]
+    grey = out.mean(axis=-1, keepdims=True)
+    out = np.maximum(grey + (out - grey) * r["saturation"], 0) + r["offset"]
+    out = out + np.sqrt(r["noise"] * out) * rng.standard_normal(out.shape).astype(np.float32)
+    srgb = np.clip(linear_to_srgb(np.maximum(out, 0)), 0, 1) ** r["gamma"]
+    return srgb_to_linear(srgb).astype(np.float32)
+
+
 class Crops(Dataset):
     """``(x, y)`` pairs: x ``(3, H, W)`` in [-1, 1], a crop of frame i; y the task's label
     (or the index for unlabelled frames).  Training draws a random crop and exposure per
-    (seed, epoch, i), and with ``blur_px`` > 0 a Gaussian blur of sigma uniform in [0,
-    blur_px] input pixels (:func:`ipm.photo.defocus`, in linear light); evaluation takes the
-    centre crop at the rendered exposure, unblurred."""
+    (seed, epoch, i), with ``blur_px`` > 0 a Gaussian blur of sigma uniform in [0,
+    blur_px] input pixels (:func:`ipm.photo.defocus`, in linear light), and with ``look``
+    another look (:func:`jitter_look`); evaluation takes the centre crop at the rendered
+    exposure, unblurred and as rendered."""
 
     def __init__(self, frames: Frames, crop: tuple[int, int], task: Task | None = None,
                  train: bool = True, seed: int = 0, exposure_ev: float = 0.5,
-                 blur_px: float = 0.0) -> None:
+                 blur_px: float = 0.0, look: bool = False) -> None:
         self.frames, self.crop, self.task, self.train = frames, crop, task, train
         self.seed, self.exposure_ev, self.blur_px, self.epoch = seed, exposure_ev, blur_px, 0
+        self.look = look
         self._targets = (None if task is None or frames.labels is None
                          else [task.target(p) for p in frames.labels])
 
@@ -119,17 +146,20 @@ class Crops(Dataset):
         if w < cw:  # training batches need one crop size
             raise UserError(f"{self.frames.records[i].image}: {w} px wide at the nets' pitch, "
                             f"narrower than their training crop of {cw} px")
-        ev, sigma = 0.0, 0.0
+        ev, sigma, rng = 0.0, 0.0, None
         if self.train:
             rng = np.random.default_rng([self.seed, self.epoch, i])
             top, left = int(rng.integers(0, h - ch + 1)), int(rng.integers(0, w - cw + 1))
             ev = float(rng.uniform(-self.exposure_ev, self.exposure_ev))
-            # drawn last, and only when asked: runs without blur keep their crops
+            # drawn last, and only when asked: runs without blur (or look) keep their crops
             sigma = float(rng.uniform(0, self.blur_px)) if self.blur_px > 0 else 0.0
         else:
             top, left = (h - ch) // 2, (w - cw) // 2
         patch = img[top:top + ch, left:left + cw]
-        if sigma > 0:
+        if self.look and rng is not None:
+            linear = jitter_look(_LINEAR[patch], rng)
+            x = exposed_input(defocus(linear, sigma) if sigma > 0 else linear, ev)
+        elif sigma > 0:
             x = exposed_input(defocus(_LINEAR[patch], sigma), ev)
         else:
             x = exposure_lut(ev)[patch]

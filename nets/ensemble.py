@@ -24,28 +24,38 @@ from ipm.params import PARAM_ORDER, YarnParams
 from ipm.photo import Photo, pitch_factor
 
 ENSEMBLE = "ensemble.json"
-#: Default models, shipped inside the package.
+#: Default models, shipped inside the package: the frontlit nets.
 SHIPPED = Path(__file__).parent / "models"
+#: The shipped nets of each capture setup (``ipm.render.scene.SETUPS``).
+SHIPPED_FOR = {"frontlit": SHIPPED, "backlit": Path(__file__).parent / "models-backlit"}
 #: How much a net's input may be upsampled from the photo before a finer net is not used.
 MAX_UPSAMPLING = 1.25
 
 
 @dataclass
 class Ensemble:
-    """Trained nets that together decide every parameter of :data:`PARAM_ORDER`."""
+    """Trained nets that together decide every parameter of :data:`PARAM_ORDER`, for the
+    photos of one capture ``setup`` (the setup of their training renders)."""
 
     nets: dict[str, YarnNet]
     info: dict[str, dict]
     folder: Path
+    setup: str = "frontlit"
 
     @classmethod
-    def load(cls, folder: str | Path | None = None, device: str = "cpu") -> Ensemble:
-        """Load the nets listed in ``folder/ensemble.json`` (default: the shipped ones)."""
-        folder = Path(folder) if folder is not None else SHIPPED
+    def load(cls, folder: str | Path | None = None, device: str = "cpu",
+             setup: str | None = None) -> Ensemble:
+        """Load the nets listed in ``folder/ensemble.json`` (default: those shipped for
+        ``setup``, frontlit if None); with ``setup`` given, nets trained on another setup's
+        renders are refused (they read such photos wrongly)."""
+        shipped = SHIPPED_FOR.get(setup or "frontlit")
+        if folder is None and shipped is None:
+            raise UserError(f"unknown capture setup {setup!r}; one of {', '.join(SHIPPED_FOR)}")
+        folder = Path(folder) if folder is not None else shipped
         if not (folder / ENSEMBLE).is_file():
-            hint = ("no default models are shipped in this build of ipm yet; train them with "
-                    "`ipm train --preset ensemble --data DIR --val DIR --out runs/x` and pass "
-                    "--models runs/x" if folder == SHIPPED else
+            hint = (f"no {setup or 'frontlit'} models are shipped in this build of ipm yet; "
+                    f"train them with `ipm train --setup {setup or 'frontlit'} --data DIR --val "
+                    "DIR --out runs/x` and pass --models runs/x" if folder == shipped else
                     "train with `ipm train ... --out DIR`")
             raise UserError(f"{folder} holds no trained models ({ENSEMBLE} missing); {hint}")
         manifest = read_json(folder / ENSEMBLE)
@@ -60,7 +70,11 @@ class Ensemble:
         if missing:
             raise UserError(f"the models in {folder} do not predict {', '.join(missing)} "
                             "(an unfinished run? train the remaining nets)")
-        return cls(nets, info, folder)
+        trained_on = str(manifest.get("setup", "frontlit"))
+        if setup is not None and setup != trained_on:
+            raise UserError(f"the models in {folder} were trained on {trained_on} renders, "
+                            f"not {setup}: give --models of {setup} nets")
+        return cls(nets, info, folder, trained_on)
 
     def chosen(self, pixel_size_mm: float = PIXEL_SIZE_MM) -> dict[str, YarnNet]:
         """The nets that predict for a photo of ``pixel_size_mm``.  Where several nets decide
@@ -122,6 +136,9 @@ class Ensemble:
         nets ``names``, when given)."""
         if photo.image.ndim != 3 or photo.image.shape[2] != 3:
             raise ValueError(f"expected an (H, W, 3) image, got shape {photo.image.shape}")
+        if photo.setup != self.setup:
+            raise UserError(f"{photo.name} is a {photo.setup} photo; the nets "
+                            f"in {self.folder} read {self.setup} ones")
         scaled: dict[float, np.ndarray] = {}
         result = {}
         for name, net in self.chosen(photo.pixel_size_mm).items():

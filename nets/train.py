@@ -185,7 +185,7 @@ def train_net(name: str, cfg: TrainConfig, train_frames: Frames, val_frames: Fra
     optimizer = torch.optim.Adam(net.parameters(), lr=cfg.lr)
 
     train_crops = Crops(train_frames, ncfg.crop, task, True, cfg.seed, cfg.exposure_ev,
-                        cfg.blur_px)
+                        cfg.blur_px, cfg.look)
     val_crops = Crops(val_frames, ncfg.crop, task, False)
     train_targets = np.stack([task.target(p) for p in train_frames.labels])
     val_targets = np.stack([task.target(p) for p in val_frames.labels])
@@ -316,7 +316,8 @@ class _progress:
 def _write_ensemble(cfg: TrainConfig) -> None:
     nets = [n for n in PRESETS[cfg.preset].tasks if (cfg.out / n / CONFIG).is_file()]
     write_text(cfg.out / ENSEMBLE, json.dumps({"format": FORMAT, "preset": cfg.preset,
-                                               "nets": nets}, indent=2) + "\n")
+                                               "setup": cfg.setup, "nets": nets}, indent=2)
+               + "\n")
 
 
 def _check_resume(cfg: TrainConfig) -> None:
@@ -343,6 +344,11 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Path:
     crop = crop_size(cfg.input_scale)
     train_frames = Frames.synthetic(cfg.data, cfg.input_scale, crop)
     val_frames = Frames.synthetic(cfg.val, cfg.input_scale, crop)
+    for folder, frames in ((cfg.data, train_frames), (cfg.val, val_frames)):
+        other = sorted({r.setup for r in frames.records} - {cfg.setup})
+        if other:
+            raise UserError(f"{folder} holds {', '.join(other)} renders; these nets are for "
+                            f"{cfg.setup} photos (--setup)")
     real_frames = None
     if cfg.real is not None:
         real_frames = Frames.real(cfg.real, cfg.input_scale, crop, cfg.real_pixel_size,

@@ -13,6 +13,7 @@ from ipm.frame import PIXEL_SIZE_MM
 from ipm.io import check_not_inputs, check_same_settings, prepare_folder
 from ipm.progress import progress_bar
 from ipm.refine.search import DEFAULT_PLY_COUNTS, SearchOptions
+from ipm.render.commands import SetupOpt
 
 #: The search's defaults, one place for both commands: :class:`SearchOptions`.
 _DEFAULT = SearchOptions()
@@ -64,13 +65,15 @@ def fit(
     invert: Annotated[bool, typer.Option("--invert", help="invert the photo first (backlit: "
                                          "dark yarn on a light background)")] = False,
     variant: Annotated[str | None, typer.Option(help="Mitsuba variant")] = None,
+    setup: SetupOpt = "frontlit",
 ) -> None:
     """Infer a yarn's parameters from a photo: the neural ensemble, and with --refine a
     render-and-compare search; writes params.json (neural and refined parameters, their
     losses, the settings), neural.png, refined.png and compare.png (photo | neural |
-    refined)."""
+    refined).  The nets and the renders are those of the photo's capture setup (--setup)."""
     from ipm.photo import Photo, pixel_size_of
     from ipm.refine.fit import FitOptions
+    from ipm.render.scene import setup_options
 
     options = FitOptions(search=SearchOptions(**_search_stages(params), algorithm=algorithm,
                                               budget=budget, time_s=time_limit),
@@ -81,8 +84,9 @@ def fit(
         from ipm.knit import faces
 
         faces(knit, 1, 1)  # an unknown pattern fails before any work
+    setup_options(setup)  # an unknown setup fails before any work
     pixel_size = pixel_size_of(photo, pixel_size, calibration)
-    shot, note = Photo.read(photo, pixel_size).upright()
+    shot, note = Photo.read(photo, pixel_size, setup).upright()
     if note:
         typer.echo(f"note: {note}", err=True)
     if invert:
@@ -104,14 +108,15 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
     from ipm.photo import write_png
     from ipm.refine.fit import compare_image, display_renders, fit
     from ipm.render.renderer import Renderer
+    from ipm.render.scene import setup_options
 
     for stale in ([] if refine else ["refined.png"]) + ([] if knit else ["knit.png", "knit.json"]):
         (out / stale).unlink(missing_ok=True)  # from an earlier fit into the same folder
     from ipm.nets.ensemble import Ensemble
 
-    ensemble = Ensemble.load(models)
+    ensemble = Ensemble.load(models, setup=shot.setup)
     neural = ensemble.predict(shot)
-    renderer = Renderer(variant)
+    renderer = Renderer(variant, setup_options(shot.setup))
     with progress_bar("renders, best loss {task.fields[best]}", transient=True) as bar:
         task = bar.add_task("refining" if refine else "scoring",
                             total=budget * len(options.search.stages) * options.ply_counts,
@@ -139,7 +144,8 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
                                   panels[0].shape[1], out))
         labels.append(f"{knit} patch of the {'refined' if refine else 'neural'} yarn")
     write_png(out / "compare.png", compare_image(panels, labels))
-    write_text(out / "params.json", json.dumps(result.to_dict(options, pixel_size), indent=2))
+    write_text(out / "params.json", json.dumps(result.to_dict(options, pixel_size, shot.setup),
+                                                indent=2))
     typer.echo(f"loss neural {result.loss_neural:.4f} -> refined {result.loss_refined:.4f} "
                f"({result.seconds:.0f} s); wrote {out}/params.json, compare.png", err=True)
 
@@ -190,6 +196,9 @@ def compare(
                                            "by a Gaussian of this sigma (mm at the yarn) "
                                            "first: the fits on photos less sharp than "
                                            "renders")] = 0.0,
+    setup: Annotated[str | None, typer.Option(help="capture setup of a folder of photos "
+                                              "(frontlit, backlit); a dataset records its "
+                                              "own")] = None,
 ) -> None:
     """Neural-only vs refined over many photos: `ipm fit --refine` on each, then a table
     (CSV and Markdown) and a figure of photo | neural | refined."""
@@ -203,14 +212,16 @@ def compare(
 
     options = FitOptions(search=SearchOptions(**_search_stages(params), algorithm=algorithm,
                                               budget=budget), ply_counts=ply_counts)
-    listed = cmp.photos_in(photos, pixel_size, count)
-    ensemble = Ensemble.load(models)
+    listed = cmp.photos_in(photos, pixel_size, count, setup)
+    setup = listed[0].setup
+    ensemble = Ensemble.load(models, setup=setup)
     prepare_folder(out)
     settings = {"photos": str(photos), "count": len(listed), "pixel_size_mm": pixel_size,
                 "models": str(models) if models else "shipped", "budget": budget,
                 "algorithm": algorithm, "params": list(options.search.params), "prior": prior,
                 "invert": invert}
     settings |= {"blur_mm": blur_mm} if blur_mm else {}  # only when set: older folders resume
+    settings |= {"setup": setup} if setup != "frontlit" else {}
     settings |= {"ply_counts": ply_counts} if ply_counts > 1 else {}  # (older: one)
     later = options.search.later
     settings |= {"later_stages": [list(s) for s in later]} if later else {}

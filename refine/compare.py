@@ -51,18 +51,26 @@ class PhotoPrep:
         return photo.inverted() if self.invert else photo
 
 
-def photos_in(folder: Path, pixel_size_mm: float, count: int | None = None) -> list[Record]:
-    """The photos of ``folder`` sorted by name: a dataset's (with labels and pixel sizes) if
-    it holds a manifest, else every image file (at ``pixel_size_mm``)."""
+def photos_in(folder: Path, pixel_size_mm: float, count: int | None = None,
+              setup: str | None = None) -> list[Record]:
+    """The photos of ``folder`` sorted by name: a dataset's (with labels, pixel sizes and
+    capture setup) if it holds a manifest, else every image file (at ``pixel_size_mm``, of
+    capture ``setup``, frontlit if None).  They must all be of one setup (``setup``, if
+    given), since one ensemble and one scene fit them."""
     folder = Path(folder)
     if not folder.is_dir():
         raise UserError(f"{folder} is not a folder of photos")
     if (folder / MANIFEST).is_file():
         photos = read_manifest(folder)
     else:
-        photos = [Record(p, pixel_size_mm) for p in photo_files(folder)]
+        photos = [Record(p, pixel_size_mm, setup=setup or "frontlit")
+                  for p in photo_files(folder)]
     if not photos:
         raise UserError(f"{folder} holds no photos ({', '.join(PHOTO_SUFFIXES)})")
+    setups = sorted({p.setup for p in photos} | ({setup} if setup else set()))
+    if len(setups) > 1:
+        raise UserError(f"{folder} holds photos of {' and '.join(setups)} setups"
+                        + (f" (--setup {setup})" if setup else "") + "; compare one at a time")
     photos.sort(key=lambda p: str(p.image))
     return photos[:count] if count else photos
 
@@ -86,7 +94,8 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
             prep: PhotoPrep = PhotoPrep(),
             progress: Callable[[int, int], None] | None = None,
             ply_counts_of: Callable[[Photo], Sequence[int]] | None = None) -> list[dict]:
-    """Fit every photo, resuming from the rows already in the JSON-lines file ``path``.
+    """Fit every photo (all of one capture setup), resuming from the rows already in the
+    JSON-lines file ``path``.
 
     ``neural_of(i, photo)`` gives the nets' parameters of photo ``i``, ``ply_counts_of``
     the nets' likely ply counts for the search to try (default: the nets' one).  A row is appended
@@ -94,6 +103,7 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
     ``error`` instead, and the others go on.  A line torn by a kill, and any row that does
     not belong to the photo at its place, is dropped and that photo fitted again."""
     from ipm.render.renderer import Renderer
+    from ipm.render.scene import setup_options
 
     done: list[dict] = []
     for line in path.read_text(encoding="utf-8").splitlines() if path.is_file() else []:
@@ -116,7 +126,7 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
             except UserError as e:  # an unreadable or unusable photo: say so, go on
                 row = {"image": str(photos[i].image), "error": str(e)}
             else:
-                renderer = renderer or Renderer()
+                renderer = renderer or Renderer(options=setup_options(photo.setup))
                 row = fit_row(photos[i], photo, neural, renderer, options, sigma,
                               ply_counts_of(photo) if ply_counts_of else ())
             f.write(json.dumps(row) + "\n")
@@ -211,8 +221,10 @@ def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Record], picks:
     from ipm.photo import write_png
     from ipm.refine.fit import FitOptions, FitResult, compare_image, display_renders
     from ipm.render.renderer import Renderer
+    from ipm.render.scene import setup_options
 
-    renderer, options = Renderer(), FitOptions(display_scale=display_scale, display_spp=16)
+    renderer = Renderer(options=setup_options(photos[picks[0]].setup)) if picks else None
+    options = FitOptions(display_scale=display_scale, display_spp=16)
     panels, labels = [], []
     for i in picks:
         r = rows[i]

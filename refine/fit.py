@@ -98,7 +98,8 @@ class FitResult:
                 out[k] = (*nets_interval(k, v, self.sigma[k]), "nets' validation error")
         return out
 
-    def to_dict(self, options: FitOptions, pixel_size_mm: float) -> dict:
+    def to_dict(self, options: FitOptions, pixel_size_mm: float, setup: str = "frontlit"
+                ) -> dict:
         return {
             "neural": self.neural.to_dict(), "refined": self.refined.to_dict(),
             "loss": {"neural": self.loss_neural, "refined": self.loss_refined},
@@ -106,7 +107,7 @@ class FitResult:
             "intervals": {"level": LEVEL, **{k: list(v) for k, v in self.intervals().items()}},
             "evaluations": self.search.evaluations if self.search else 0,
             "seconds": round(self.seconds, 2),
-            "settings": {**asdict(options), "pixel_size_mm": pixel_size_mm,
+            "settings": {**asdict(options), "pixel_size_mm": pixel_size_mm, "setup": setup,
                          "tilt_deg": round(self.tilt_deg, 3), "prior_sigma": self.sigma},
         }
 

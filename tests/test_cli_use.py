@@ -85,6 +85,20 @@ def test_fit_needs_a_pixel_size(tmp_path):
                        tmp_path / "fit"), "not an ipm calibration file")
 
 
+def test_fit_a_backlit_photo_names_the_missing_nets(tmp_path):
+    """`--setup backlit` reads the photo as backlit and asks for backlit nets: none ship yet,
+    so one line says how to train them, and no folder is left behind."""
+    from ipm.nets.ensemble import SHIPPED_FOR
+
+    if (SHIPPED_FOR["backlit"] / "ensemble.json").is_file():
+        pytest.skip("backlit nets are shipped")
+    one_line_error(ipm("fit", ROOT / "examples" / "golden.png", "--setup", "backlit",
+                       "--out", tmp_path / "fit"), "ipm train --setup backlit")
+    assert not (tmp_path / "fit").exists()
+    one_line_error(ipm("fit", ROOT / "examples" / "golden.png", "--setup", "sideways",
+                       "--out", tmp_path / "fit"), "unknown capture setup 'sideways'")
+
+
 def test_a_pixel_size_in_the_wrong_unit_is_refused_before_any_allocation():
     """8.5 (micrometres typed as mm) would resample the bundled photo to gigapixels (the code
     before grew to 24 GB in 12 s).  The call runs under a wrapper that reports its own

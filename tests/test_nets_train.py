@@ -318,9 +318,31 @@ def test_predict_bad_models_cli(damaged_run, photo):
 def test_no_shipped_models_names_how_to_train(monkeypatch, tmp_path):
     from ipm.nets import ensemble
 
-    monkeypatch.setattr(ensemble, "SHIPPED", tmp_path)
-    with pytest.raises(UserError, match="ipm train --preset ensemble"):
-        ensemble.Ensemble.load()
+    monkeypatch.setattr(ensemble, "SHIPPED_FOR", {"frontlit": tmp_path, "backlit": tmp_path})
+    with pytest.raises(UserError, match="no backlit models .*ipm train --setup backlit"):
+        ensemble.Ensemble.load(setup="backlit")
+
+
+def test_nets_know_their_capture_setup(trained, data, photo, tmp_path):
+    """A run records the setup of its renders; nets of one setup refuse photos and requests
+    of the other, and training refuses renders of another setup than --setup."""
+    from ipm.nets.ensemble import Ensemble
+    from ipm.photo import Photo
+
+    run = trained["ensemble"]
+    assert json.loads((run / "ensemble.json").read_text())["setup"] == "frontlit"
+    with pytest.raises(UserError, match="trained on frontlit renders, not backlit"):
+        Ensemble.load(run, setup="backlit")
+    with pytest.raises(UserError, match="is a backlit photo; the nets .* read frontlit"):
+        Ensemble.load(run).predict(Photo.read(photo, 0.01 / SCALE, "backlit"))
+    r = ipm("predict", photo, "--pixel-size", 0.01 / SCALE, "--models", run,
+            "--setup", "backlit")
+    _one_line_error(r)
+    assert "trained on frontlit renders" in r.stderr
+    r = ipm("train", "--data", data / "train", "--val", data / "val", "--out", tmp_path / "o",
+            "--setup", "backlit", "--width", 0.125, "--input-scale", SCALE, "--epochs", 1)
+    _one_line_error(r)
+    assert "holds frontlit renders; these nets are for backlit photos" in r.stderr
 
 
 def test_train_bad_options(data, tmp_path):

@@ -63,6 +63,25 @@ def test_plain_folder_has_no_labels(dataset, ensemble, tmp_path):
     assert "true_" not in head and "refined_alpha" in head
 
 
+def test_photos_of_one_setup_at_a_time(dataset, tmp_path):
+    """A folder's photos take --setup; a dataset's carry their own, and a mix, or a --setup
+    that contradicts them, is one line."""
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    shutil.copy(sorted((dataset / "images").iterdir())[0], photos / "yarn.png")
+    assert photos_in(photos, 0.04, setup="backlit")[0].setup == "backlit"
+    assert {p.setup for p in photos_in(dataset, 0.01)} == {"frontlit"}
+    with pytest.raises(UserError, match="frontlit setups .--setup backlit.; compare one"):
+        photos_in(dataset, 0.01, setup="backlit")
+    mixed = tmp_path / "mixed"
+    shutil.copytree(dataset, mixed)
+    lines = (mixed / "manifest.jsonl").read_text().splitlines()
+    lines[0] = json.dumps({**json.loads(lines[0]), "setup": "backlit"})
+    (mixed / "manifest.jsonl").write_text("\n".join(lines) + "\n")
+    with pytest.raises(UserError, match="backlit and frontlit setups; compare one"):
+        photos_in(mixed, 0.01)
+
+
 def test_folder_without_photos(tmp_path):
     with pytest.raises(UserError, match="holds no photos"):
         photos_in(tmp_path, 0.01)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 import numpy as np
 
@@ -27,7 +28,6 @@ from ipm.io import write_text
 from ipm.params import PAPER_INTERVALS
 from ipm.refine.compare import REFINED
 
-COMMAND = "python -m ipm.benchmarks.identifiability --data data/test --out docs/identifiability.md"
 STEPS = (-0.1, -0.075, -0.05, -0.025, 0.0, 0.025, 0.05, 0.075, 0.1)
 SPREAD_SEEDS = (0, 1, 2, 3, 4)
 TOTAL = "search loss"
@@ -65,18 +65,30 @@ def sweep(objective, truth, name: str) -> dict[str, dict]:
     return out
 
 
-def run(data: str, names, yarns: int, scale: float, spp: int, seeds_per_eval: int) -> dict:
+def run(data: str, names, yarns: int, scale: float, spp: int, seeds_per_eval: int,
+        learned: float = 0.0) -> dict:
+    """The sweeps; with ``learned`` > 0 the loss also holds the shipped nets' readings (groups
+    ``net_*``, :meth:`ipm.nets.ensemble.Ensemble.readings`) at that weight."""
     from ipm.benchmarks.report import load_records
     from ipm.refine.fit import match_colour, photo_tilt
     from ipm.refine.objective import RenderObjective
     from ipm.render.renderer import Renderer
+    from ipm.render.scene import setup_options
 
-    renderer = Renderer()
+    records = load_records(data, yarns)
+    setup = records[0].setup
+    readings = None
+    if learned > 0:
+        from ipm.nets.ensemble import Ensemble
+
+        readings = Ensemble.load(setup=setup).readings
+    renderer = Renderer(options=setup_options(setup))
     results: dict[str, list] = {n: [] for n in names}
-    for i, rec in enumerate(load_records(data, yarns)):
+    for i, rec in enumerate(records):
         photo = rec.photo().at_pitch(scale)
         objective = RenderObjective(renderer, photo, scale, spp, seeds_per_eval=seeds_per_eval,
-                                    tilt_deg=photo_tilt(photo))
+                                    tilt_deg=photo_tilt(photo), readings=readings,
+                                    readings_weight=learned)
         truth = match_colour(objective, rec.params, photo)
         for n in names:
             results[n].append(sweep(objective, truth, n))
@@ -101,7 +113,8 @@ def verdicts(results: dict) -> dict[str, dict[str, dict]]:
     return out
 
 
-def summary(results: dict, scale: float, spp: int, yarns: int, data: str) -> str:
+def summary(results: dict, scale: float, spp: int, yarns: int, data: str, command: str
+            ) -> str:
     v = verdicts(results)
     groups = list(next(iter(v.values())))
     rows = ["| parameter | " + " | ".join(groups) + " |", "|---|" + "---|" * len(groups)]
@@ -109,7 +122,7 @@ def summary(results: dict, scale: float, spp: int, yarns: int, data: str) -> str
         rows.append(f"| `{n}` | " + " | ".join(
             f"{'**' if g[1]['ok'] else ''}{g[1]['offset']:.1f} / {g[1]['ratio']:.2f}"
             f"{'**' if g[1]['ok'] else ''}" for g in per.items()) + " |")
-    head = markdown_header("Identifiability of the refine loss", COMMAND, "mitsuba", "torch",
+    head = markdown_header("Identifiability of the refine loss", command, "mitsuba", "torch",
                            "kornia")
     return (head + f"\n{yarns} held-out photos of `{data}`, scale {scale}, {spp} spp.  Each "
             "cell: median |argmin - truth| in % of the parameter's range / median spread "
@@ -129,12 +142,16 @@ def main() -> None:
     ap.add_argument("--scale", type=float, default=0.2)
     ap.add_argument("--spp", type=int, default=4)
     ap.add_argument("--seeds-per-eval", type=int, default=2)
+    ap.add_argument("--learned", type=float, default=0.0, help="weight of the nets' readings "
+                    "in the loss (0: the image statistics alone)")
     args = ap.parse_args()
     results = run(args.data, args.params.split(","), args.yarns, args.scale, args.spp,
-                  args.seeds_per_eval)
-    text = summary(results, args.scale, args.spp, args.yarns, args.data)
+                  args.seeds_per_eval, args.learned)
+    command = "python -m ipm.benchmarks.identifiability " + " ".join(sys.argv[1:])
+    text = summary(results, args.scale, args.spp, args.yarns, args.data, command)
+    learned = f", every net_* group {args.learned:g}" if args.learned else ""
     text += (f"\nFiber seeds averaged per evaluation: {args.seeds_per_eval}; weights of the "
-             f"search loss {DEFAULT_WEIGHTS}.\n")
+             f"search loss {DEFAULT_WEIGHTS}{learned}.\n")
     if args.out:
         write_text(args.out, text)
         write_text(args.out.rsplit(".", 1)[0] + ".json", json.dumps(results, indent=1))

@@ -152,6 +152,21 @@ class Ensemble:
             result[name] = net.predict(x.to(device)).mean(0).cpu().numpy()
         return result
 
+    def readings(self, image_srgb: np.ndarray, pixel_size_mm: float, crops: int = 3
+                 ) -> dict[str, torch.Tensor]:
+        """What the regression nets read in an sRGB image ``(H, W, 3)`` of ``pixel_size_mm``:
+        each one's output (its parameters, normalised to their prior range), averaged over
+        ``crops`` crops, as statistics groups ``net_<name>`` ``(1, K)`` float64.  The
+        refinement compares them between the photo and each render
+        (:class:`ipm.refine.objective.RenderObjective`): a render the nets read as they read
+        the photo looks like it to them, whatever bias they have in common.  Why: the
+        hand-made statistics do not identify ``r_y`` or ``alpha``, which the nets read."""
+        names = tuple(n for n, net in self.nets.items()
+                      if not net.config.spec.is_classification)
+        outputs = self.outputs(Photo(image_srgb, pixel_size_mm, self.setup), crops, names)
+        return {f"net_{k}": torch.from_numpy(v.astype(np.float64))[None]
+                for k, v in outputs.items()}
+
     def ply_counts(self, photo: Photo, crops: int = 3, most: int = 2, mass: float = 0.9
                    ) -> tuple[int, ...]:
         """The ply counts the ``n`` net finds most likely for ``photo``, most likely first:

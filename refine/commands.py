@@ -12,11 +12,13 @@ import typer
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.io import check_not_inputs, check_same_settings, prepare_folder
 from ipm.progress import progress_bar
-from ipm.refine.search import DEFAULT_PLY_COUNTS, SearchOptions
+from ipm.refine.search import DEFAULT_LEARNED, DEFAULT_PLY_COUNTS, SearchOptions
 from ipm.render.commands import SetupOpt
 
 #: The search's defaults, one place for both commands: :class:`SearchOptions`.
 _DEFAULT = SearchOptions()
+_LEARNED_HELP = ("weight of the nets' readings in the loss: renders the nets read as they "
+                 "read the photo (0: the image statistics alone)")
 
 _PARAMS_HELP = ("continuous parameters to search, comma-separated (alpha_ply,R_ply); "
                 "stages separated by ';' (alpha_ply;R_ply,r_x: those from alpha_ply's best); "
@@ -66,6 +68,7 @@ def fit(
                                          "dark yarn on a light background)")] = False,
     variant: Annotated[str | None, typer.Option(help="Mitsuba variant")] = None,
     setup: SetupOpt = "frontlit",
+    learned: Annotated[float, typer.Option(min=0, help=_LEARNED_HELP)] = DEFAULT_LEARNED,
 ) -> None:
     """Infer a yarn's parameters from a photo: the neural ensemble, and with --refine a
     render-and-compare search; writes params.json (neural and refined parameters, their
@@ -77,7 +80,7 @@ def fit(
 
     options = FitOptions(search=SearchOptions(**_search_stages(params), algorithm=algorithm,
                                               budget=budget, time_s=time_limit),
-                         ply_counts=ply_counts)
+                         ply_counts=ply_counts, learned=learned)
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
                                          "params.json", "knit.png", "knit.json")], [photo])
     if knit is not None:
@@ -126,7 +129,8 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
                                                              best=f"{best:.4f}"),
                      sigma=ensemble.sigma(pixel_size) if prior else None,
                      ply_counts=(ensemble.ply_counts(shot, most=options.ply_counts)
-                                 if options.ply_counts > 1 else ()))
+                                 if options.ply_counts > 1 else ()),
+                     readings=ensemble.readings)
     if w := ensemble.upsampling_warning(pixel_size):
         result.warnings.insert(0, w)
     for w in result.warnings:
@@ -199,6 +203,7 @@ def compare(
     setup: Annotated[str | None, typer.Option(help="capture setup of a folder of photos "
                                               "(frontlit, backlit); a dataset records its "
                                               "own")] = None,
+    learned: Annotated[float, typer.Option(min=0, help=_LEARNED_HELP)] = DEFAULT_LEARNED,
 ) -> None:
     """Neural-only vs refined over many photos: `ipm fit --refine` on each, then a table
     (CSV and Markdown) and a figure of photo | neural | refined."""
@@ -211,7 +216,8 @@ def compare(
     from ipm.refine.fit import FitOptions
 
     options = FitOptions(search=SearchOptions(**_search_stages(params), algorithm=algorithm,
-                                              budget=budget), ply_counts=ply_counts)
+                                              budget=budget), ply_counts=ply_counts,
+                         learned=learned)
     listed = cmp.photos_in(photos, pixel_size, count, setup)
     setup = listed[0].setup
     ensemble = Ensemble.load(models, setup=setup)
@@ -222,6 +228,7 @@ def compare(
                 "invert": invert}
     settings |= {"blur_mm": blur_mm} if blur_mm else {}  # only when set: older folders resume
     settings |= {"setup": setup} if setup != "frontlit" else {}
+    settings |= {"learned": learned} if learned else {}
     settings |= {"ply_counts": ply_counts} if ply_counts > 1 else {}  # (older: one)
     later = options.search.later
     settings |= {"later_stages": [list(s) for s in later]} if later else {}

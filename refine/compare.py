@@ -76,11 +76,13 @@ def photos_in(folder: Path, pixel_size_mm: float, count: int | None = None,
 
 
 def fit_row(record: Record, photo: Photo, neural: YarnParams, renderer, options,
-            sigma: dict[str, float] | None, ply_counts: Sequence[int] = ()) -> dict:
+            sigma: dict[str, float] | None, ply_counts: Sequence[int] = (),
+            readings=None) -> dict:
     """``ipm fit --refine`` on one photo, as one JSON-ready row."""
     from ipm.refine.fit import fit
 
-    res = fit(photo, neural, renderer, options, sigma=sigma, ply_counts=ply_counts)
+    res = fit(photo, neural, renderer, options, sigma=sigma, ply_counts=ply_counts,
+              readings=readings)
     return {"image": str(record.image), "neural": res.neural.to_dict(),
             "refined": res.refined.to_dict(), "loss_neural": res.loss_neural,
             "loss_refined": res.loss_refined, "improved": bool(res.improved),
@@ -93,12 +95,14 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
             YarnParams], options, sigma: dict[str, float] | None,
             prep: PhotoPrep = PhotoPrep(),
             progress: Callable[[int, int], None] | None = None,
-            ply_counts_of: Callable[[Photo], Sequence[int]] | None = None) -> list[dict]:
+            ply_counts_of: Callable[[Photo], Sequence[int]] | None = None,
+            readings=None) -> list[dict]:
     """Fit every photo (all of one capture setup), resuming from the rows already in the
     JSON-lines file ``path``.
 
     ``neural_of(i, photo)`` gives the nets' parameters of photo ``i``, ``ply_counts_of``
-    the nets' likely ply counts for the search to try (default: the nets' one).  A row is appended
+    the nets' likely ply counts for the search to try (default: the nets' one), ``readings``
+    the nets' readings for the loss (:func:`ipm.refine.fit.fit`).  A row is appended
     (and flushed) as each fit ends; a photo that cannot be read or used gets a row with its
     ``error`` instead, and the others go on.  A line torn by a kill, and any row that does
     not belong to the photo at its place, is dropped and that photo fitted again."""
@@ -128,7 +132,7 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
             else:
                 renderer = renderer or Renderer(options=setup_options(photo.setup))
                 row = fit_row(photos[i], photo, neural, renderer, options, sigma,
-                              ply_counts_of(photo) if ply_counts_of else ())
+                              ply_counts_of(photo) if ply_counts_of else (), readings)
             f.write(json.dumps(row) + "\n")
             f.flush()
             done.append(row)
@@ -247,7 +251,7 @@ def compare(photos: Sequence[Record], out: Path, ensemble, options, prior: bool 
     every = fit_all(out / FITS, photos, lambda i, photo: ensemble.predict(photo), options,
         ensemble.sigma(photos[0].pixel_size_mm) if prior and photos else None, prep,
         progress, (lambda photo: ensemble.ply_counts(photo, most=options.ply_counts))
-        if options.ply_counts > 1 else None)
+        if options.ply_counts > 1 else None, ensemble.readings)
     fitted = [i for i, r in enumerate(every) if "error" not in r]
     rows, truth, photos = ([seq[i] for i in fitted] for seq in (every, truth, photos))
     s = summary(rows, truth)

@@ -19,8 +19,9 @@ from scipy.stats import norm
 from ipm.errors import UserError
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
 from ipm.photo import Photo, linear_to_srgb, srgb_to_linear
-from ipm.refine.objective import RenderObjective, centre_crop, to_tensor
+from ipm.refine.objective import Readings, RenderObjective, centre_crop, to_tensor
 from ipm.refine.search import (
+    DEFAULT_LEARNED,
     DEFAULT_PLY_COUNTS,
     LEVEL,
     SearchOptions,
@@ -44,7 +45,8 @@ class FitOptions:
     of the nets' most likely ply counts the search tries (each a search of its own: the
     ply-stripe period the loss sees is ``alpha_ply / n``, so a wrong ``n`` makes the right
     period a wrong ``alpha_ply``).  display_scale, display_spp: the renders written for the
-    user."""
+    user.  learned: the weight of the nets' readings in the loss (``readings`` of
+    :func:`fit`; 0: the hand-made statistics alone)."""
 
     scale: float = 0.2
     spp: int = 4
@@ -53,6 +55,7 @@ class FitOptions:
     ply_counts: int = DEFAULT_PLY_COUNTS
     display_scale: float = 0.5
     display_spp: int = 16
+    learned: float = DEFAULT_LEARNED
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.scale <= 1 or not 0.05 <= self.display_scale <= 1:
@@ -60,6 +63,9 @@ class FitOptions:
                             f"{self.display_scale}")
         if min(self.spp, self.display_spp, self.seeds_per_eval, self.ply_counts) < 1:
             raise UserError("spp, seeds_per_eval and ply_counts must be >= 1")
+        if not 0 <= self.learned < 1e6:
+            raise UserError(f"the weight of the nets' readings must be >= 0, got "
+                            f"{self.learned}")
 
 
 def nets_interval(name: str, value: float, sigma: float) -> tuple[float, float]:
@@ -155,19 +161,25 @@ def match_colour(objective: RenderObjective, params: YarnParams, photo: np.ndarr
 
 def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOptions(),
         refine: bool = True, on_eval: Callable[[int, float, float], None] | None = None,
-        sigma: dict[str, float] | None = None, ply_counts: Sequence[int] = ()) -> FitResult:
+        sigma: dict[str, float] | None = None, ply_counts: Sequence[int] = (),
+        readings: Readings | None = None) -> FitResult:
     """Fit ``photo`` starting from the nets' parameters ``neural``; ``sigma``, the nets'
     error per parameter (:meth:`ipm.nets.ensemble.Ensemble.sigma`), makes the search a MAP
     estimate around them (:mod:`ipm.refine.search`).  ``ply_counts``: the nets' likely ply
     counts (:meth:`ipm.nets.ensemble.Ensemble.ply_counts`); the search runs from the nets'
-    guess with each of the first ``options.ply_counts`` of them and keeps the lowest loss."""
+    guess with each of the first ``options.ply_counts`` of them and keeps the lowest loss.
+    ``readings``: the nets' readings (:meth:`ipm.nets.ensemble.Ensemble.readings`), added
+    to the loss at weight ``options.learned`` when that is above 0."""
     t0 = time.perf_counter()
     warnings = [w for w in (exposure_warning(photo.image),) if w]
     small = photo.at_pitch(options.scale)
     seen = core_contrast(small) >= MIN_CORE_CONTRAST
     tilt = photo_tilt(small) if seen else 0.0
+    learned = options.learned > 0 and readings is not None
     objective = RenderObjective(renderer, small, options.scale, options.spp,
-                                seeds_per_eval=options.seeds_per_eval, tilt_deg=tilt)
+                                seeds_per_eval=options.seeds_per_eval, tilt_deg=tilt,
+                                readings=readings if learned else None,
+                                readings_weight=options.learned)
     if not seen:
         warnings.append("no yarn found in the photo (its core does not stand out from the "
                         "background); the search is skipped and the neural result kept")

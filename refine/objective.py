@@ -8,12 +8,14 @@ is deterministic for a given fiber seed: the render seed is fixed.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import torch
 
 from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb
-from ipm.refine.stats import group_distances, stat_distance, yarn_statistics
+from ipm.refine.stats import GROUPS, group_distances, stat_distance, yarn_statistics
 from ipm.render.photometric import Photometric
 
 #: Group weights from ``python -m ipm.benchmarks.identifiability`` on 10 held-out photos
@@ -25,6 +27,10 @@ from ipm.render.photometric import Photometric
 #: noise), so they are off.
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
                    "period": 1.0, "stripes": 2.0, "histogram": 0.0}
+
+
+#: Learned statistics of an sRGB image at a pixel size (mm): named groups of (1, K) tensors.
+Readings = Callable[[np.ndarray, float], dict[str, torch.Tensor]]
 
 
 def centre_crop(img: np.ndarray, h: int, w: int) -> np.ndarray:
@@ -44,13 +50,17 @@ class RenderObjective:
     renderer: an :class:`ipm.render.renderer.Renderer`.  photo: (H, W, 3) sRGB in [0, 1]
     at the pixel pitch of ``scale``.  ``seeds_per_eval``: the render's statistics are the
     mean over that many fiber seeds (``seed``, ``seed + 1000``, ...), which shrinks the
-    seed noise of the loss at that many times the cost.  ``evaluations`` counts renders.
+    seed noise of the loss at that many times the cost.  ``readings``: learned statistics,
+    ``readings(image, pixel_size_mm) -> {group: (1, K) tensor}`` (the nets' readings,
+    :meth:`ipm.nets.ensemble.Ensemble.readings`), computed alike on the photo and every
+    render and weighted by ``readings_weight``.  ``evaluations`` counts renders.
     """
 
     def __init__(self, renderer, photo: np.ndarray, scale: float, spp: int,
                  render_seed: int = 0, weights: dict[str, float] | None = None,
-                 seeds_per_eval: int = 1, tilt_deg: float = 0.0) -> None:
-        from ipm.render.scene import frame_size
+                 seeds_per_eval: int = 1, tilt_deg: float = 0.0,
+                 readings: Readings | None = None, readings_weight: float = 1.0) -> None:
+        from ipm.render.scene import frame_size, pixel_size_mm
 
         w, h = frame_size(scale)
         self.size = (min(h, photo.shape[0]), min(w, photo.shape[1]))
@@ -58,8 +68,19 @@ class RenderObjective:
         self.weights = DEFAULT_WEIGHTS if weights is None else weights
         self.seeds_per_eval = seeds_per_eval
         self.capture = Photometric(rotation_deg=tilt_deg)
-        self.photo_stats = yarn_statistics(to_tensor(centre_crop(photo, *self.size)))
+        self.readings, self.pixel_size_mm = readings, pixel_size_mm(scale)
+        self.photo_stats = self.statistics(centre_crop(photo, *self.size))
+        self.weights = {**self.weights, **{k: readings_weight for k in self.photo_stats
+                                           if k not in GROUPS}}
         self.evaluations = 0
+
+    def statistics(self, img: np.ndarray) -> dict[str, torch.Tensor]:
+        """The statistics groups of an sRGB image (H, W, 3): the hand-made ones and the
+        learned ``readings``."""
+        stats = yarn_statistics(to_tensor(img))
+        if self.readings is not None:
+            stats |= self.readings(img, self.pixel_size_mm)
+        return stats
 
     def render(self, params: YarnParams, seed: int) -> np.ndarray:
         """The sRGB render (H, W, 3) the objective compares, cut to the photo's extent."""
@@ -69,11 +90,10 @@ class RenderObjective:
         return centre_crop(linear_to_srgb(img), *self.size)
 
     def loss_of_image(self, img: np.ndarray) -> float:
-        return float(stat_distance(yarn_statistics(to_tensor(img)), self.photo_stats,
-                                   self.weights)[0])
+        return float(stat_distance(self.statistics(img), self.photo_stats, self.weights)[0])
 
     def _mean_stats(self, params: YarnParams, seed: int) -> dict[str, torch.Tensor]:
-        stats = [yarn_statistics(to_tensor(self.render(params, seed + 1000 * k)))
+        stats = [self.statistics(self.render(params, seed + 1000 * k))
                  for k in range(self.seeds_per_eval)]
         return {g: torch.stack([s[g] for s in stats]).mean(dim=0) for g in stats[0]}
 

@@ -46,6 +46,8 @@ PROFILE_RISE = 0.5 * float(chi2.ppf(LEVEL, 1))
 #: matched the period with the wrong one as often as not (docs/compare-two-ply-counts
 #: against docs/compare).
 DEFAULT_PLY_COUNTS = 1
+#: The weight of the nets' readings in a fit's loss (:class:`ipm.refine.fit.FitOptions`).
+DEFAULT_LEARNED = 0.0
 
 ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_L")
 

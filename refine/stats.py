@@ -239,14 +239,15 @@ def yarn_stat_loss(x: Tensor, x_o: Tensor, weights: dict[str, float] | None = No
 
 
 def group_distances(sx: dict[str, Tensor], so: dict[str, Tensor]) -> dict[str, Tensor]:
-    """Per group, the (B,) mean squared difference of two :func:`yarn_statistics` results."""
-    return {k: (sx[k] - so[k]).square().mean(dim=1) for k in GROUPS}
+    """Per group, the (B,) mean squared difference of two :func:`yarn_statistics` results
+    (and of any further groups both hold, such as the nets' readings)."""
+    return {k: (sx[k] - so[k]).square().mean(dim=1) for k in so}
 
 
 def weighted_sum(distances: dict, weights: dict[str, float] | None = None):
     """The loss from :func:`group_distances` (tensors or floats): weights default to 1."""
     weights = weights or {}
-    return sum(weights.get(k, 1.0) * distances[k] for k in GROUPS)
+    return sum(weights.get(k, 1.0) * v for k, v in distances.items())
 
 
 def stat_distance(sx: dict[str, Tensor], so: dict[str, Tensor],

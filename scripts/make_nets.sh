@@ -5,6 +5,12 @@
 # and accuracy.
 #
 #   bash scripts/make_nets.sh [DATA=data] [RUNS=runs] [OUT=nets/models]
+#   SETUP=backlit bash scripts/make_nets.sh data-backlit runs-backlit nets/models-backlit
+#
+# SETUP=backlit makes the backlit nets: renders in the backlit setup with a varied look
+# (`ipm generate --vary-look`: lamps, backdrop, defocus, vignetting, tone, JPEG), and every
+# training crop in another look (`ipm train --look`), since real backlit captures differ in
+# all of these.
 #
 # Every step resumes: a finished dataset or training run is left as it is, so a stopped
 # script is simply run again.  Training runs as two one-thread processes side by side (the
@@ -13,12 +19,18 @@
 # (--blur 1.5 input pixels) throughout, so the nets hold on defocused photos.  The data
 # follow the guided prior with flyaways in the real yarns' ranges (ipm/prior.py).
 set -euo pipefail
-DATA="${1:-data}"; RUNS="${2:-runs}"; OUT="${3:-nets/models}"
+DATA="${1:-data}"; RUNS="${2:-runs}"; OUT="${3:-nets/models}"; SETUP="${SETUP:-frontlit}"
 mkdir -p "$DATA" "$RUNS"
-ipm generate --out "$DATA/train" --count 2000 --seed 0 --spp 4-24
-ipm generate --out "$DATA/val" --count 200 --seed 1 --split val --spp 4-24
-ipm generate --out "$DATA/test" --count 200 --seed 20261122 --split test
-common=(--preset ensemble --data "$DATA/train" --val "$DATA/val" --blur 1.5 --seed 0 --lr 1e-3)
+if [ "$SETUP" = frontlit ]; then
+  look=(); augment=()
+else
+  look=(--setup "$SETUP" --vary-look); augment=(--setup "$SETUP" --look)
+fi
+ipm generate --out "$DATA/train" --count 2000 --seed 0 --spp 4-24 "${look[@]}"
+ipm generate --out "$DATA/val" --count 200 --seed 1 --split val --spp 4-24 "${look[@]}"
+ipm generate --out "$DATA/test" --count 200 --seed 20261122 --split test "${look[@]}"
+common=(--preset ensemble --data "$DATA/train" --val "$DATA/val" --blur 1.5 --seed 0 --lr 1e-3
+        "${augment[@]}")
 train() { OMP_NUM_THREADS=1 ipm train "${common[@]}" "$@"; }
 (train --nets alpha,m --epochs 18 --out "$RUNS/make-a" &&
  train --nets n,thickness --epochs 12 --out "$RUNS/make-b") & first=$!
@@ -43,7 +55,8 @@ for run in runs:
         (tmp / net).mkdir()
         for f in (run / net).glob("model.*"):  # the net, not its training checkpoint
             shutil.copy(f, tmp / net / f.name)
-manifest = {"format": "ipm.nets/1", "preset": "ensemble", "nets": order}
+setup = json.loads((runs[0] / "ensemble.json").read_text()).get("setup", "frontlit")
+manifest = {"format": "ipm.nets/1", "preset": "ensemble", "setup": setup, "nets": order}
 assert sorted(p.name for p in tmp.iterdir()) == sorted(order), "a net is missing"
 (tmp / "ensemble.json").write_text(json.dumps(manifest, indent=2))
 if (out / "README.md").exists():

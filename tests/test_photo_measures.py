@@ -49,3 +49,19 @@ def test_flyaway_fiber_width():
     width, support = fiber_width_px(sig, core_diameter_px(sig))
     assert support > 500
     assert width == pytest.approx(7.0, abs=1.0)
+
+
+def test_real_photo_measures_in_mm_and_the_readme_ply_counts(tmp_path):
+    """benchmarks/real_photos.py: the yardstick in mm at a photo's pixel size, and the ply
+    counts read from the photos' README rows (only rows that state one)."""
+    from ipm.benchmarks.real_photos import measures, readme_ply_counts
+
+    d, period = measures(striped_band(), 0.002)
+    assert d == pytest.approx(0.12, rel=0.03) and period == pytest.approx(0.074, rel=0.02)
+    (tmp_path / "README.md").write_text(
+        "| file | source | res | description |\n| --- | --- | --- | --- |\n"
+        "| a.png | x | 1440x1080 | 2-ply spun yarn, ply twist visible |\n"
+        "| b.png | x | 1440x1080 | thinner 2-ply spun yarn, long fibres |\n"
+        "| c.png | x | 1440x1080 | spun yarn, ply count unclear (faint plied structure) |\n")
+    assert readme_ply_counts(tmp_path) == {"a.png": 2, "b.png": 2}
+    assert readme_ply_counts(tmp_path / "missing") == {}

@@ -111,3 +111,26 @@ def test_photo_tilt_is_the_rendered_rotation(degrees):
 
     image = Renderer().render(preset("golden"), 1, 0.2, 4, 0, Photometric(rotation_deg=degrees))
     assert photo_tilt(linear_to_srgb(image)) == pytest.approx(degrees, abs=0.3)
+
+
+def test_the_nets_readings_enter_the_loss_at_their_weight(photo):
+    """--learned: the shipped regression nets' readings of the photo and of each render are
+    groups of the loss (none for the class nets), at the weight asked; a render of a
+    thicker yarn reads further from the photo's R_ply than one of the true yarn."""
+    from ipm.nets.ensemble import Ensemble
+    from ipm.photo import Photo
+    from ipm.refine.objective import RenderObjective
+    from ipm.render.renderer import Renderer
+
+    small = Photo.read(photo, 0.04).at_pitch(0.2)
+    renderer, readings = Renderer(), Ensemble.load().readings
+    plain = RenderObjective(renderer, small, 0.2, 4)
+    learned = RenderObjective(renderer, small, 0.2, 4, readings=readings, readings_weight=5.0)
+    nets = {k for k in learned.photo_stats if k.startswith("net_")}
+    assert nets == {"net_alpha", "net_m", "net_r_x", "net_r_y", "net_alpha_ply", "net_R_ply",
+                    "net_flyaways"}
+    golden = preset("golden")
+    d = learned.group_distances(golden, 1)
+    assert learned(golden, 1) == pytest.approx(plain(golden, 1) + 5 * sum(d[k] for k in nets))
+    thick = learned.group_distances(golden.replace(R_ply=1.4 * golden.R_ply), 1)
+    assert thick["net_R_ply"] > 4 * d["net_R_ply"]

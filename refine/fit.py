@@ -17,6 +17,7 @@ import numpy as np
 from scipy.stats import norm
 
 from ipm.errors import UserError
+from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
 from ipm.photo import Photo, linear_to_srgb, srgb_to_linear
 from ipm.refine.objective import Readings, RenderObjective, centre_crop, to_tensor
@@ -30,6 +31,7 @@ from ipm.refine.search import (
 )
 from ipm.refine.stats import centre_rows, yarn_centre, yarn_tilt
 from ipm.render.photometric import Photometric
+from ipm.render.scene import Frame, frame_size, pixel_size_mm
 
 #: A photo with more than this fraction of pixels at either end of the range is strongly
 #: under- or over-exposed, where the paper's nets do not hold.
@@ -172,14 +174,15 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
     to the loss at weight ``options.learned`` when that is above 0."""
     t0 = time.perf_counter()
     warnings = [w for w in (exposure_warning(photo.image),) if w]
-    small = photo.at_pitch(options.scale)
+    scale, frame = search_view(photo, options.scale)
+    small = photo.at_pitch(scale)
     seen = core_contrast(small) >= MIN_CORE_CONTRAST
     tilt = photo_tilt(small) if seen else 0.0
     learned = options.learned > 0 and readings is not None
-    objective = RenderObjective(renderer, small, options.scale, options.spp,
+    objective = RenderObjective(renderer, small, scale, options.spp,
                                 seeds_per_eval=options.seeds_per_eval, tilt_deg=tilt,
                                 readings=readings if learned else None,
-                                readings_weight=options.learned)
+                                readings_weight=options.learned, frame=frame)
     if not seen:
         warnings.append("no yarn found in the photo (its core does not stand out from the "
                         "background); the search is skipped and the neural result kept")
@@ -202,6 +205,27 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
                      warnings, result, time.perf_counter() - t0, tilt, sigma)
 
 
+def search_view(photo: Photo, scale: float) -> tuple[float, Frame | None]:
+    """The scale, and the view if not the yarn frame, that the search renders ``photo`` at.
+
+    A photo that shows less than the yarn frame with pixels finer than ``scale``'s (a
+    microscope's 3 x 2.3 mm at 0.002 mm) is searched over its own field of view at the
+    pitch that gives it as many pixels as the yarn frame has at ``scale``, but no finer than
+    its own pixels or the scene's :data:`PIXEL_SIZE_MM`: its core and ply stripes then span
+    as many pixels as a full frame's would, for the same cost per render (at ``scale``'s
+    pitch such a photo is 60 x 45 px).  Any other photo: ``(scale, None)``."""
+    h, w = photo.image.shape[:2]
+    frame_w, frame_h = frame_size(scale)
+    area = h * w * photo.pixel_size_mm ** 2
+    pitch = max(PIXEL_SIZE_MM, photo.pixel_size_mm, float(np.sqrt(area / (frame_w * frame_h))))
+    if pitch >= pixel_size_mm(scale) * (1 - 1e-6):
+        return scale, None
+    fine = PIXEL_SIZE_MM / pitch
+    max_w, max_h = frame_size(fine)
+    return fine, Frame(min(max_w, round(w * photo.pixel_size_mm / pitch)),
+                       min(max_h, round(h * photo.pixel_size_mm / pitch)), pitch)
+
+
 def photo_tilt(image_srgb: np.ndarray) -> float:
     """The yarn's tilt in the photo, degrees counter-clockwise (:func:`yarn_tilt`).  The
     renders of the search are tilted the same way, so that a tilted photo's wider core
@@ -215,13 +239,15 @@ def _mean_loss(objective: RenderObjective, p: YarnParams, opts: SearchOptions) -
 
 def display_renders(renderer, photo: Photo, result: FitResult, options: FitOptions
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(photo, neural render, refined render) as sRGB at ``display_scale``, cut to their
-    common extent."""
-    shown = photo.at_pitch(options.display_scale)
+    """(photo, neural render, refined render) as sRGB at ``display_scale`` (a photo of a
+    smaller field of view at a finer pitch, :func:`search_view`), cut to their common
+    extent."""
+    scale, frame = search_view(photo, options.display_scale)
+    shown = photo.at_pitch(scale)
     capture = Photometric(rotation_deg=result.tilt_deg)
-    renders = [linear_to_srgb(renderer.render(p, options.search.fiber_seed,
-                                              options.display_scale, options.display_spp,
-                                              photometric=capture))
+    renders = [linear_to_srgb(renderer.render(p, options.search.fiber_seed, scale,
+                                              options.display_spp, photometric=capture,
+                                              frame=frame))
                for p in (result.neural, result.refined)]
     h = min(shown.shape[0], renders[0].shape[0])
     w = min(shown.shape[1], renders[0].shape[1])

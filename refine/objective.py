@@ -17,6 +17,7 @@ from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb
 from ipm.refine.stats import GROUPS, group_distances, stat_distance, yarn_statistics
 from ipm.render.photometric import Photometric
+from ipm.render.scene import Frame
 
 #: Group weights from ``python -m ipm.benchmarks.identifiability`` on 10 held-out photos
 #: (docs/identifiability.md): the core profile (R_ply), the axial autocorrelation (alpha_ply,
@@ -53,22 +54,27 @@ class RenderObjective:
     seed noise of the loss at that many times the cost.  ``readings``: learned statistics,
     ``readings(image, pixel_size_mm) -> {group: (1, K) tensor}`` (the nets' readings,
     :meth:`ipm.nets.ensemble.Ensemble.readings`), computed alike on the photo and every
-    render and weighted by ``readings_weight``.  ``evaluations`` counts renders.
+    render and weighted by ``readings_weight``.  ``frame``: render only this view (a
+    photo's smaller field of view, at its pitch, :func:`ipm.refine.fit.search_view`)
+    instead of the yarn frame at ``scale``.  ``evaluations`` counts renders.
     """
 
     def __init__(self, renderer, photo: np.ndarray, scale: float, spp: int,
                  render_seed: int = 0, weights: dict[str, float] | None = None,
                  seeds_per_eval: int = 1, tilt_deg: float = 0.0,
-                 readings: Readings | None = None, readings_weight: float = 1.0) -> None:
+                 readings: Readings | None = None, readings_weight: float = 1.0,
+                 frame: Frame | None = None) -> None:
         from ipm.render.scene import frame_size, pixel_size_mm
 
-        w, h = frame_size(scale)
+        w, h = frame_size(scale) if frame is None else (frame.width, frame.height)
         self.size = (min(h, photo.shape[0]), min(w, photo.shape[1]))
+        self.frame = frame
         self.renderer, self.scale, self.spp, self.render_seed = renderer, scale, spp, render_seed
         self.weights = DEFAULT_WEIGHTS if weights is None else weights
         self.seeds_per_eval = seeds_per_eval
         self.capture = Photometric(rotation_deg=tilt_deg)
-        self.readings, self.pixel_size_mm = readings, pixel_size_mm(scale)
+        self.readings = readings
+        self.pixel_size_mm = pixel_size_mm(scale) if frame is None else frame.pixel_size_mm
         self.photo_stats = self.statistics(centre_crop(photo, *self.size))
         self.weights = {**self.weights, **{k: readings_weight for k in self.photo_stats
                                            if k not in GROUPS}}
@@ -85,7 +91,7 @@ class RenderObjective:
     def render(self, params: YarnParams, seed: int) -> np.ndarray:
         """The sRGB render (H, W, 3) the objective compares, cut to the photo's extent."""
         img = self.renderer.render(params, seed, self.scale, self.spp, self.render_seed,
-                                   self.capture)
+                                   self.capture, self.frame)
         self.evaluations += 1
         return centre_crop(linear_to_srgb(img), *self.size)
 

@@ -147,16 +147,20 @@ class Renderer:
         return np.array(image, dtype=np.float32)[..., :3]
 
     def render(self, params: YarnParams, seed: int, scale: float, spp: int,
-               render_seed: int = 0, photometric: Photometric = NOMINAL) -> np.ndarray:
+               render_seed: int = 0, photometric: Photometric = NOMINAL,
+               frame: Frame | None = None) -> np.ndarray:
         """Linear RGB image (H, W, 3) float32 of the yarn ``generate(params, seed)``, with
-        the capture variation ``photometric`` applied (geometry and image); a backlit
-        photo is grey (a monochrome sensor: the channels' mean in all three)."""
+        the capture variation ``photometric`` applied (geometry and image), in the yarn
+        frame at ``scale`` or in ``frame`` (a photo's smaller field of view at its own
+        pitch); a backlit photo is grey (a monochrome sensor: the channels' mean in all
+        three)."""
         to_world = yarn_to_world(photometric.shift_mm, photometric.rotation_deg)
         image = self.render_fibers(generate(params, seed), params.color, scale, spp,
-                                   render_seed, to_world,
+                                   render_seed, to_world, frame,
                                    gains=(photometric.light_gain, photometric.backdrop_gain))
         if photometric != NOMINAL:
-            image = apply_to_image(image, photometric, pixel_size_mm(scale))
+            pitch = frame.pixel_size_mm if frame is not None else pixel_size_mm(scale)
+            image = apply_to_image(image, photometric, pitch)
         if self.options.setup == "backlit":
             image = np.repeat(image.mean(axis=-1, keepdims=True), 3, axis=-1)
         return image

@@ -134,3 +134,33 @@ def test_the_nets_readings_enter_the_loss_at_their_weight(photo):
     assert learned(golden, 1) == pytest.approx(plain(golden, 1) + 5 * sum(d[k] for k in nets))
     thick = learned.group_distances(golden.replace(R_ply=1.4 * golden.R_ply), 1)
     assert thick["net_R_ply"] > 4 * d["net_R_ply"]
+
+
+def test_a_small_fine_photo_is_searched_over_its_own_view_at_a_finer_pitch():
+    """A microscope's 3 x 2.3 mm at 0.0021 mm per pixel: searched over that view with as
+    many pixels as the yarn frame has at the search's scale (not 60 x 45 px); a photo as
+    large as the frame keeps the frame; the view renders the yarn where the frame does."""
+    from ipm.photo import Photo
+    from ipm.refine.fit import search_view
+    from ipm.render.renderer import Renderer
+    from ipm.render.scene import frame_size
+
+    small = Photo(np.zeros((1080, 1440, 3), np.float32), 0.0021)
+    scale, frame = search_view(small, 0.2)
+    assert frame.width * frame.pixel_size_mm == pytest.approx(1440 * 0.0021, rel=0.01)
+    assert frame.height * frame.pixel_size_mm == pytest.approx(1080 * 0.0021, rel=0.01)
+    assert frame.width * frame.height <= np.prod(frame_size(0.2)) * 1.01
+    assert 0.01 <= frame.pixel_size_mm < 0.05 and scale == pytest.approx(0.01 / frame.pixel_size_mm)
+    assert search_view(Photo(np.zeros((600, 2000, 3), np.float32), 0.01), 0.2) == (0.2, None)
+    assert search_view(Photo(np.zeros((150, 500, 3), np.float32), 0.04), 0.2) == (0.2, None)
+
+    renderer, golden = Renderer(), preset("golden")
+    full = renderer.render(golden, 0, 0.5, 16).mean(axis=2)  # 1000 x 300 px at 0.02 mm
+    _, view = search_view(Photo(np.zeros((400, 600, 3), np.float32), 0.005), 0.2)
+    part = renderer.render(golden, 0, 0.01 / view.pixel_size_mm, 16, frame=view).mean(axis=2)
+    assert part.shape == (view.height, view.width)
+    # the same rows hold the core: the column-mean profiles, at the frame's pitch, agree
+    rows_mm = (np.arange(view.height) - (view.height - 1) / 2) * view.pixel_size_mm
+    full_rows_mm = (np.arange(full.shape[0]) - (full.shape[0] - 1) / 2) * 0.02
+    expected = np.interp(rows_mm, full_rows_mm, full.mean(axis=1))
+    assert np.corrcoef(part.mean(axis=1), expected)[0, 1] > 0.95

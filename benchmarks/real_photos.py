@@ -33,6 +33,7 @@ from ipm.benchmarks.photo_measures import (
     yarn_signal,
 )
 from ipm.dataset import Record, photo_files
+from ipm.frame import PIXEL_SIZE_MM
 from ipm.photo import linear_to_srgb, write_png
 
 #: The renders are measured at this pitch (mm per pixel): fine enough for a 0.3 mm core.
@@ -64,14 +65,14 @@ def render_over(renderer, params, photo_shape: tuple[int, int], pixel_size_mm: f
                 tilt_deg: float, seed: int) -> np.ndarray:
     """The yarn ``params`` rendered backlit over the photo's field of view at
     :data:`MEASURE_PITCH_MM`, tilted as the photo's yarn: grey sRGB (H, W) in [0, 1]."""
-    from ipm.generator import generate
-    from ipm.render.scene import Frame, yarn_to_world
+    from ipm.render.photometric import Photometric
+    from ipm.render.scene import Frame
 
     h, w = (round(n * pixel_size_mm / MEASURE_PITCH_MM) for n in photo_shape)
-    linear = renderer.render_fibers(generate(params, seed), params.color, 0.25, MEASURE_SPP,
-                                    to_world=yarn_to_world(rotation_deg=tilt_deg),
-                                    frame=Frame(w, h, MEASURE_PITCH_MM))
-    return np.clip(linear_to_srgb(linear.mean(axis=-1)), 0, 1)
+    linear = renderer.render(params, seed, PIXEL_SIZE_MM / MEASURE_PITCH_MM, MEASURE_SPP,
+                             photometric=Photometric(rotation_deg=tilt_deg),
+                             frame=Frame(w, h, MEASURE_PITCH_MM))
+    return np.clip(linear_to_srgb(linear[..., 0]), 0, 1)
 
 
 def relative(a: float, b: float) -> float:

@@ -63,8 +63,20 @@ def test_fit_refine_writes_everything_and_does_not_get_worse(models, photo, tmp_
     for k in ("m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply"):
         lo, hi, source = intervals[k]
         assert lo <= getattr(refined, k) <= hi, k
-        assert source == ("search profile" if k in ("r_y", "alpha_ply")
-                          else "nets' validation error"), k
+        assert source == ("search profile and nets' validation error"
+                          if k in ("r_y", "alpha_ply") else "nets' validation error"), k
+
+
+def test_a_searched_interval_is_the_profile_joined_with_the_nets():
+    """The profile measures only the loss's seed noise: the interval of a searched
+    parameter is its hull with the nets' interval around their value (profile alone, held
+    to the refined value, without the nets' error)."""
+    from ipm.refine.fit import nets_interval, search_interval
+
+    nets = nets_interval("alpha_ply", 6.0, 1.0)
+    assert search_interval("alpha_ply", 6.4, (6.3, 6.5), 6.0, 1.0) == nets
+    assert search_interval("alpha_ply", 9.0, (8.9, 9.2), 6.0, 1.0) == (nets[0], 9.2)
+    assert search_interval("alpha_ply", 9.3, (8.9, 9.2), 6.0, None) == (8.9, 9.3)
 
 
 def test_bad_search_params_one_line(models, photo, tmp_path):

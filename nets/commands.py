@@ -94,8 +94,9 @@ def predict(
     pixel_size: Annotated[float, typer.Option(help=_PIXEL_HELP)] = PIXEL_SIZE_MM,
     models: Annotated[Path | None, typer.Option(help=_MODELS_HELP)] = None,
     crops: Annotated[int, typer.Option(help="crops along the yarn to average")] = 3,
-    invert: Annotated[bool, typer.Option("--invert", help="invert the photo first (backlit: "
-                                         "dark yarn on a light background)")] = False,
+    invert: Annotated[bool, typer.Option("--invert", help="invert the photo first (an odd "
+                                         "case, e.g. a negative; a backlit photo takes "
+                                         "--setup backlit)")] = False,
     device: Annotated[str, typer.Option(help="cpu | cuda")] = "cpu",
     setup: SetupOpt = "frontlit",
 ) -> None:

@@ -64,8 +64,9 @@ def fit(
     prior: Annotated[bool, typer.Option("--prior/--no-prior", help="keep the search near the "
                                         "nets' guess, weighted by the nets' validation error "
                                         "(MAP); --no-prior: the image loss alone")] = True,
-    invert: Annotated[bool, typer.Option("--invert", help="invert the photo first (backlit: "
-                                         "dark yarn on a light background)")] = False,
+    invert: Annotated[bool, typer.Option("--invert", help="invert the photo first (an odd "
+                                         "case, e.g. a negative; a backlit photo takes "
+                                         "--setup backlit)")] = False,
     variant: Annotated[str | None, typer.Option(help="Mitsuba variant")] = None,
     setup: SetupOpt = "frontlit",
     learned: Annotated[float, typer.Option(min=0, help=_LEARNED_HELP)] = DEFAULT_LEARNED,
@@ -194,8 +195,9 @@ def compare(
     = DEFAULT_PLY_COUNTS,
     prior: Annotated[bool, typer.Option("--prior/--no-prior", help="MAP search around the "
                                         "nets' guess (see ipm fit)")] = True,
-    invert: Annotated[bool, typer.Option("--invert", help="invert the photos first (backlit: "
-                                         "dark yarn on a light background)")] = False,
+    invert: Annotated[bool, typer.Option("--invert", help="invert the photos first (an odd "
+                                         "case, e.g. negatives; backlit photos take "
+                                         "--setup backlit)")] = False,
     blur_mm: Annotated[float, typer.Option("--blur-mm", min=0, max=1, help="blur every photo "
                                            "by a Gaussian of this sigma (mm at the yarn) "
                                            "first: the fits on photos less sharp than "

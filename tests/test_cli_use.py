@@ -85,15 +85,14 @@ def test_fit_needs_a_pixel_size(tmp_path):
                        tmp_path / "fit"), "not an ipm calibration file")
 
 
-def test_fit_a_backlit_photo_names_the_missing_nets(tmp_path):
-    """`--setup backlit` reads the photo as backlit and asks for backlit nets: none ship yet,
-    so one line says how to train them, and no folder is left behind."""
-    from ipm.nets.ensemble import SHIPPED_FOR
+def test_fit_a_backlit_photo_with_frontlit_nets_is_one_line(tmp_path):
+    """`--setup backlit` reads the photo as backlit and asks for backlit nets: the frontlit
+    ones are refused in one line, before any folder is made; an unknown setup too."""
+    from ipm.nets.ensemble import SHIPPED
 
-    if (SHIPPED_FOR["backlit"] / "ensemble.json").is_file():
-        pytest.skip("backlit nets are shipped")
     one_line_error(ipm("fit", ROOT / "examples" / "golden.png", "--setup", "backlit",
-                       "--out", tmp_path / "fit"), "ipm train --setup backlit")
+                       "--models", SHIPPED, "--out", tmp_path / "fit"),
+                   "trained on frontlit renders, not backlit")
     assert not (tmp_path / "fit").exists()
     one_line_error(ipm("fit", ROOT / "examples" / "golden.png", "--setup", "sideways",
                        "--out", tmp_path / "fit"), "unknown capture setup 'sideways'")

@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +87,10 @@ def main() -> None:
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--models", type=Path, default=None, help="default: the shipped backlit")
     ap.add_argument("--budget", type=int, default=None, help="evaluations per search")
+    ap.add_argument("--params", default=None, help="the searched parameters and stages, as "
+                    "`ipm fit --params` (default: its default)")
+    ap.add_argument("--no-prior", action="store_true", help="the image loss alone, as `ipm "
+                    "fit --no-prior`: for yarns outside the nets' training range")
     args = ap.parse_args()
 
     from PIL import Image
@@ -101,11 +106,15 @@ def main() -> None:
     files = photo_files(args.photos)
     records = [Record(f, args.pixel_size, setup="backlit") for f in files]
     ensemble = Ensemble.load(args.models, setup="backlit")
-    search = SearchOptions() if args.budget is None else SearchOptions(budget=args.budget)
+    stages = ({} if args.params is None else
+              {"params": tuple(args.params.split(";")[0].split(",")),
+               "later": tuple(tuple(st.split(",")) for st in args.params.split(";")[1:])})
+    search = SearchOptions(**stages, **({} if args.budget is None else
+                                        {"budget": args.budget}))
     options = FitOptions(search=search)
     args.out.mkdir(parents=True, exist_ok=True)
     rows = fit_all(args.out / "fits.jsonl", records, lambda i, photo: ensemble.predict(photo),
-                   options, ensemble.sigma(args.pixel_size),
+                   options, None if args.no_prior else ensemble.sigma(args.pixel_size),
                    progress=lambda done, total: print(f"fits {done}/{total}", flush=True))
     plies = readme_ply_counts(args.photos)
     renderer = Renderer(options=setup_options("backlit"))
@@ -143,8 +152,8 @@ def main() -> None:
     core = np.nanmedian([t["core_rel"] for t in table])
     period = np.nanmedian([t["period_rel"] for t in table])
     right = sum(t["n"] == t["plies_readme"] for t in two)
-    command = ("python -m ipm.benchmarks.real_photos --photos " f"{args.photos} --pixel-size "
-               f"{args.pixel_size:g} --out {args.out}")
+    command = "python -m ipm.benchmarks.real_photos " + " ".join(
+        f"'{a}'" if ";" in a else a for a in sys.argv[1:])
     lines = [markdown_header("Fits of real backlit photos, measured without the nets", command,
                              "numpy", "torch", "mitsuba"),
              f"{len(table)} photos at {args.pixel_size:g} mm per pixel "

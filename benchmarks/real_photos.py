@@ -37,6 +37,9 @@ from ipm.dataset import Record, photo_files
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.photo import linear_to_srgb, write_png
 
+#: The photos in the contact sheet are the Minho dataset's (``../shared/real-yarns``).
+ATTRIBUTION = ("The photos: \"Yarn hairiness - loop & protruding fibers dataset\", University "
+               "of Minho (F. Pereira et al.), CC BY 4.0.")
 #: The renders are measured at this pitch (mm per pixel): fine enough for a 0.3 mm core.
 MEASURE_PITCH_MM = 0.01
 MEASURE_SPP = 16
@@ -156,6 +159,7 @@ def main() -> None:
         f"'{a}'" if ";" in a else a for a in sys.argv[1:])
     lines = [markdown_header("Fits of real backlit photos, measured without the nets", command,
                              "numpy", "torch", "mitsuba"),
+             ATTRIBUTION, "",
              f"{len(table)} photos at {args.pixel_size:g} mm per pixel "
              f"([how it was estimated](../real-pixel-size.md)); nets `{ensemble.folder}`.", "",
              f"- Core diameter, render against photo: median relative difference "

@@ -142,11 +142,16 @@ def fiber_width_px(sig: np.ndarray, diameter_px: float) -> tuple[float, int]:
     return (float(np.median(widths)), len(widths)) if len(widths) else (float("nan"), 0)
 
 
-def measure(path: str, backlit: bool) -> dict[str, float]:
-    """Core diameter and ply-stripe period (px) of the photo at ``path``."""
-    sig = levelled(yarn_signal(gray(path), backlit))
+def measure_image(img: np.ndarray, backlit: bool) -> dict[str, float]:
+    """Core diameter and ply-stripe period (px) of a grey image (H, W) in [0, 1]."""
+    sig = levelled(yarn_signal(img, backlit))
     d = core_diameter_px(sig)
     return {"core_diameter_px": d, "stripe_period_px": stripe_period_px(sig, d)}
+
+
+def measure(path: str, backlit: bool) -> dict[str, float]:
+    """Core diameter and ply-stripe period (px) of the photo at ``path``."""
+    return measure_image(gray(path), backlit)
 
 
 def agreement(folder: str, count: int | None = None) -> dict[str, float]:

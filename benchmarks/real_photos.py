@@ -26,13 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ipm.benchmarks.machine import markdown_header, publish
-from ipm.benchmarks.photo_measures import (
-    core_diameter_px,
-    gray,
-    levelled,
-    stripe_period_px,
-    yarn_signal,
-)
+from ipm.benchmarks.photo_measures import gray, measure_image
 from ipm.dataset import Record, photo_files
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.photo import linear_to_srgb, write_png
@@ -60,9 +54,8 @@ def readme_ply_counts(folder: Path) -> dict[str, int]:
 
 def measures(image: np.ndarray, pixel_size_mm: float) -> tuple[float, float]:
     """(core diameter, stripe period) in mm of a grey backlit image in [0, 1]."""
-    sig = levelled(yarn_signal(image, backlit=True))
-    d = core_diameter_px(sig)
-    return d * pixel_size_mm, stripe_period_px(sig, d) * pixel_size_mm
+    m = measure_image(image, backlit=True)
+    return m["core_diameter_px"] * pixel_size_mm, m["stripe_period_px"] * pixel_size_mm
 
 
 def render_over(renderer, params, photo_shape: tuple[int, int], pixel_size_mm: float,
@@ -102,16 +95,14 @@ def main() -> None:
     from ipm.params import YarnParams
     from ipm.refine.compare import fit_all
     from ipm.refine.fit import FitOptions
-    from ipm.refine.search import SearchOptions
+    from ipm.refine.search import SearchOptions, search_stages_of
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
     files = photo_files(args.photos)
     records = [Record(f, args.pixel_size, setup="backlit") for f in files]
     ensemble = Ensemble.load(args.models, setup="backlit")
-    stages = ({} if args.params is None else
-              {"params": tuple(args.params.split(";")[0].split(",")),
-               "later": tuple(tuple(st.split(",")) for st in args.params.split(";")[1:])})
+    stages = {} if args.params is None else search_stages_of(args.params)
     search = SearchOptions(**stages, **({} if args.budget is None else
                                         {"budget": args.budget}))
     options = FitOptions(search=search)

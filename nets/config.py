@@ -11,7 +11,7 @@ from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.nets.encoders import ENCODERS
 from ipm.nets.tasks import ENSEMBLE_TASKS, REG_TASKS, TASKS
-from ipm.render.scene import CAPTURE_SETUPS
+from ipm.render.scene import setup_options
 
 
 @dataclass(frozen=True)
@@ -113,9 +113,7 @@ class TrainConfig:
         for name, value, ok in checks:
             if not ok:
                 raise UserError(f"{name} = {value} is out of range")
-        if self.setup not in CAPTURE_SETUPS:
-            raise UserError(f"unknown capture setup {self.setup!r}; one of "
-                            f"{', '.join(CAPTURE_SETUPS)}")
+        setup_options(self.setup)  # an unknown setup is one line naming the choices
         if self.schedule not in SCHEDULES:
             raise UserError(f"unknown schedule {self.schedule!r}; one of {', '.join(SCHEDULES)}")
         if self.device.split(":")[0] not in ("cpu", "cuda", "mps"):
@@ -157,9 +155,7 @@ class PredictConfig:
     def __post_init__(self) -> None:
         if not self.pixel_size > 0:
             raise UserError(f"pixel size must be positive, got {self.pixel_size}")
-        if self.setup not in CAPTURE_SETUPS:
-            raise UserError(f"unknown capture setup {self.setup!r}; one of "
-                            f"{', '.join(CAPTURE_SETUPS)}")
+        setup_options(self.setup)  # an unknown setup is one line naming the choices
         if not 1 <= self.crops <= 64:
             raise UserError(f"crops must be in 1..64, got {self.crops}")
 

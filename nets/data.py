@@ -146,7 +146,7 @@ class Crops(Dataset):
         if w < cw:  # training batches need one crop size
             raise UserError(f"{self.frames.records[i].image}: {w} px wide at the nets' pitch, "
                             f"narrower than their training crop of {cw} px")
-        ev, sigma, rng = 0.0, 0.0, None
+        ev, sigma = 0.0, 0.0
         if self.train:
             rng = np.random.default_rng([self.seed, self.epoch, i])
             top, left = int(rng.integers(0, h - ch + 1)), int(rng.integers(0, w - cw + 1))
@@ -156,7 +156,7 @@ class Crops(Dataset):
         else:
             top, left = (h - ch) // 2, (w - cw) // 2
         patch = img[top:top + ch, left:left + cw]
-        if self.look and rng is not None:
+        if self.look and self.train:
             linear = jitter_look(_LINEAR[patch], rng)
             x = exposed_input(defocus(linear, sigma) if sigma > 0 else linear, ev)
         elif sigma > 0:

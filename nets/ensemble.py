@@ -22,6 +22,7 @@ from ipm.nets.model import YarnNet
 from ipm.nets.store import load_net, read_json
 from ipm.params import PARAM_ORDER, YarnParams
 from ipm.photo import Photo, pitch_factor
+from ipm.render.scene import setup_options
 
 ENSEMBLE = "ensemble.json"
 #: Default models, shipped inside the package: the frontlit nets.
@@ -48,9 +49,7 @@ class Ensemble:
         """Load the nets listed in ``folder/ensemble.json`` (default: those shipped for
         ``setup``, frontlit if None); with ``setup`` given, nets trained on another setup's
         renders are refused (they read such photos wrongly)."""
-        shipped = SHIPPED_FOR.get(setup or "frontlit")
-        if folder is None and shipped is None:
-            raise UserError(f"unknown capture setup {setup!r}; one of {', '.join(SHIPPED_FOR)}")
+        shipped = SHIPPED_FOR[setup_options(setup or "frontlit").setup]
         folder = Path(folder) if folder is not None else shipped
         if not (folder / ENSEMBLE).is_file():
             hint = (f"no {setup or 'frontlit'} models are shipped in this build of ipm yet; "

@@ -12,7 +12,12 @@ import typer
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.io import check_not_inputs, check_same_settings, prepare_folder
 from ipm.progress import progress_bar
-from ipm.refine.search import DEFAULT_LEARNED, DEFAULT_PLY_COUNTS, SearchOptions
+from ipm.refine.search import (
+    DEFAULT_LEARNED,
+    DEFAULT_PLY_COUNTS,
+    SearchOptions,
+    search_stages_of,
+)
 from ipm.render.commands import SetupOpt
 
 #: The search's defaults, one place for both commands: :class:`SearchOptions`.
@@ -23,12 +28,6 @@ _LEARNED_HELP = ("weight of the nets' readings in the loss: renders the nets rea
 _PARAMS_HELP = ("continuous parameters to search, comma-separated (alpha_ply,R_ply); "
                 "stages separated by ';' (alpha_ply;R_ply,r_x: those from alpha_ply's best); "
                 "the others keep the nets' values")
-
-
-def _search_stages(text: str) -> dict[str, tuple]:
-    """``params`` and ``later`` of :class:`SearchOptions` from ``a,b;c``."""
-    stages = [tuple(p.strip() for p in part.split(",") if p.strip()) for part in text.split(";")]
-    return {"params": stages[0], "later": tuple(stages[1:])}
 
 
 def fit(
@@ -79,7 +78,7 @@ def fit(
     from ipm.refine.fit import FitOptions
     from ipm.render.scene import setup_options
 
-    options = FitOptions(search=SearchOptions(**_search_stages(params), algorithm=algorithm,
+    options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
                                               budget=budget, time_s=time_limit),
                          ply_counts=ply_counts, learned=learned)
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
@@ -217,7 +216,7 @@ def compare(
     from ipm.refine import compare as cmp
     from ipm.refine.fit import FitOptions
 
-    options = FitOptions(search=SearchOptions(**_search_stages(params), algorithm=algorithm,
+    options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
                                               budget=budget), ply_counts=ply_counts,
                          learned=learned)
     listed = cmp.photos_in(photos, pixel_size, count, setup)

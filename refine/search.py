@@ -108,6 +108,13 @@ class SearchOptions:
                             f"{self.prior_weight}, {self.box_sigmas}")
 
 
+def search_stages_of(text: str) -> dict[str, tuple]:
+    """``params`` and ``later`` of :class:`SearchOptions` from ``a,b;c`` (``ipm fit
+    --params``): stages separated by ``;``, their parameters by ``,``."""
+    stages = [tuple(p.strip() for p in part.split(",") if p.strip()) for part in text.split(";")]
+    return {"params": stages[0], "later": tuple(stages[1:])}
+
+
 @dataclass
 class SearchResult:
     start: YarnParams

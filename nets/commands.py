@@ -36,6 +36,11 @@ def train(
     = None,
     input_scale: Annotated[float | None, typer.Option(help="input resolution relative to the "
                                                       "paper's 1200x584 crop")] = None,
+    crop: Annotated[tuple[int, int] | None, typer.Option(help="input HEIGHT WIDTH in px "
+                                                         "instead of the paper's crop at "
+                                                         "--input-scale: a detail net on "
+                                                         "`ipm generate --view` data")]
+    = None,
     epochs: Annotated[int | None, typer.Option()] = None,
     batch_size: Annotated[int | None, typer.Option(help="global batch (split over torchrun "
                                                    "processes)")] = None,
@@ -75,7 +80,7 @@ def train(
                  batch_size=batch_size, lr=lr, schedule=schedule, lambda_recon=lambda_recon,
                  lambda_latent=lambda_latent, steps_per_epoch=steps_per_epoch, seed=seed,
                  device=device, workers=workers, real_pixel_size=real_pixel_size, init=init,
-                 blur_px=blur)
+                 blur_px=blur, crop=crop)
     options = {k: v for k, v in given.items() if v is not None} | ({"look": True} if look else {})
     options.update(data=data, val=val, out=out, preset=preset, real=real, setup=setup,
                    real_invert=real_invert,

@@ -65,6 +65,7 @@ class TrainConfig:
     encoder: str = "resnet18"
     width: float = 0.25
     input_scale: float = 0.25
+    crop: tuple[int, int] | None = None
     epochs: int = 12
     batch_size: int = 32
     lr: float = 1e-3
@@ -98,6 +99,7 @@ class TrainConfig:
             raise UserError(f"unknown encoder {self.encoder!r}; one of {', '.join(ENCODERS)}")
         checks = [("width", self.width, 0 < self.width <= 4),
                   ("input scale", self.input_scale, 0 < self.input_scale <= 1),
+                  ("crop", self.crop, self.crop is None or min(self.crop) >= 32),
                   ("epochs", self.epochs, self.epochs >= 1),
                   ("batch size", self.batch_size, self.batch_size >= 1),
                   ("learning rate", self.lr, self.lr > 0),

@@ -33,7 +33,10 @@ def frame_size(input_scale: float) -> tuple[int, int]:
 @dataclass(frozen=True)
 class NetConfig:
     """A net's architecture and input: task, encoder, width multiplier, input scale (the
-    scene's pixel pitch is ``PIXEL_SIZE_MM / input_scale``), and whether d is trained."""
+    scene's pixel pitch is ``PIXEL_SIZE_MM / input_scale``), whether d is trained, and
+    ``crop_px`` (H, W): the input size when it is not the paper's crop at that scale -- a
+    detail net sees a small window at a fine pitch (``ipm generate --view``), where the
+    fibers' slant shows, at a fraction of the full crop's cost."""
 
     task: str
     encoder: str = "resnet18"
@@ -41,8 +44,13 @@ class NetConfig:
     input_scale: float = 1.0
     decoder: bool = False
     format: str = FORMAT
+    crop_px: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
+        if self.crop_px is not None:  # JSON gives a list
+            object.__setattr__(self, "crop_px", tuple(int(c) for c in self.crop_px))
+            if len(self.crop_px) != 2 or min(self.crop_px) < 32:
+                raise ValueError(f"crop must be (H, W), each at least 32 px, got {self.crop_px}")
         if self.task not in TASKS:
             raise ValueError(f"unknown task {self.task!r}; one of {', '.join(TASKS)}")
         if self.encoder not in ENCODERS:
@@ -55,14 +63,19 @@ class NetConfig:
 
     @property
     def crop(self) -> tuple[int, int]:
-        return crop_size(self.input_scale)
+        return self.crop_px or crop_size(self.input_scale)
 
     @property
     def spec(self) -> Task:
         return TASKS[self.task]
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        d = asdict(self)
+        if self.crop_px is None:  # as saved before detail nets: their runs still resume
+            del d["crop_px"]
+        else:
+            d["crop_px"] = list(self.crop_px)  # as JSON gives it back
+        return d
 
 
 class YarnNet(nn.Module):

@@ -176,7 +176,8 @@ def train_net(name: str, cfg: TrainConfig, train_frames: Frames, val_frames: Fra
     task, preset = TASKS[name], PRESETS[cfg.preset]
     adapted = name in preset.adapted
     recon, latent = adapted and preset.recon, adapted and preset.latent
-    ncfg = NetConfig(name, cfg.encoder, cfg.width, cfg.input_scale, decoder=recon)
+    ncfg = NetConfig(name, cfg.encoder, cfg.width, cfg.input_scale, decoder=recon,
+                     crop_px=cfg.crop)
     folder = cfg.out / name
     torch.manual_seed(cfg.seed)
     net = YarnNet(ncfg).to(dist.device)
@@ -324,7 +325,7 @@ def _check_resume(cfg: TrainConfig) -> None:
     path = cfg.out / "train.json"
     if not path.is_file():
         return
-    old, new = read_json(path), cfg.to_dict()
+    old, new = read_json(path), json.loads(json.dumps(cfg.to_dict()))  # tuples as lists
     # an option newer than the run counts as its default there
     defaults = {f.name: f.default for f in fields(TrainConfig)}
     changed = sorted(k for k in new if k not in RESUMABLE and old.get(k, defaults[k]) != new[k])
@@ -341,7 +342,7 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Path:
         _check_resume(cfg)
         write_text(cfg.out / "train.json", json.dumps(cfg.to_dict(), indent=2) + "\n")
     dist.barrier()
-    crop = crop_size(cfg.input_scale)
+    crop = cfg.crop or crop_size(cfg.input_scale)
     train_frames = Frames.synthetic(cfg.data, cfg.input_scale, crop)
     val_frames = Frames.synthetic(cfg.val, cfg.input_scale, crop)
     for folder, frames in ((cfg.data, train_frames), (cfg.val, val_frames)):

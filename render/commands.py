@@ -206,6 +206,12 @@ def generate(
                                             "the backdrop's strength, defocus, vignetting, "
                                             "tone curve and JPEG compression per sample, so "
                                             "that nets do not learn one look")] = False,
+    view: Annotated[tuple[int, int] | None, typer.Option(help="render only a WIDTH HEIGHT "
+                                                         "px window at the scale's pitch, "
+                                                         "centred on the yarn: detail "
+                                                         "data for fine-pitch nets (with "
+                                                         "--scale 1, 0.01 mm per px)")]
+    = None,
     variant: VariantOpt = None,
     setup: SetupOpt = "frontlit",
     ray: Annotated[str | None, typer.Option(help="render on Ray instead of a local pool: "
@@ -234,7 +240,7 @@ def generate(
                            spp=spp_min, spp_max=spp_max,
                            photometric=(PhotometricRanges(look=vary_look) if photometric
                                         else NO_VARIATION),
-                           scene=setup_options(setup))
+                           scene=setup_options(setup), view=view)
     with progress_bar("{task.fields[rate]}") as bar:
         task = bar.add_task(f"{split} -> {out}", total=count, rate="")
         start: list[tuple[float, int]] = []

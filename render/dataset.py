@@ -3,7 +3,8 @@ scene, with a manifest the nets read.
 
 A dataset (``DIR`` made by ``ipm generate``; the manifest's contract is :mod:`ipm.dataset`):
 
-* ``DIR/images/NNNNNN.png``: 8-bit sRGB RGB PNG of the 2000 x 600 frame times ``scale``.
+* ``DIR/images/NNNNNN.png``: 8-bit sRGB RGB PNG of the 2000 x 600 frame times ``scale``,
+  or of a detail ``view`` (width x height px at that scale's pitch, centred on the yarn).
 * ``DIR/manifest.jsonl``: a :class:`~ipm.dataset.Record` per line, sorted by ``index`` when
   a run ends; beside the core fields each line records ``render_seed``, ``split``,
   ``scale``, ``spp`` (the count this sample's render took), ``width``, ``height``,
@@ -40,7 +41,7 @@ from ipm.io import write_text
 from ipm.params import YarnParams
 from ipm.prior import GuidedPrior
 from ipm.render.photometric import Photometric, PhotometricRanges
-from ipm.render.scene import DEFAULT_OPTIONS, SceneOptions, frame_size, pixel_size_mm
+from ipm.render.scene import DEFAULT_OPTIONS, Frame, SceneOptions, frame_size, pixel_size_mm
 
 SETTINGS = "dataset.json"
 IMAGES = "images"
@@ -90,6 +91,7 @@ class GenerateOptions:
     spp_max: int | None = None
     photometric: PhotometricRanges = field(default_factory=PhotometricRanges)
     scene: SceneOptions = DEFAULT_OPTIONS
+    view: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         if self.count < 1:
@@ -101,6 +103,19 @@ class GenerateOptions:
         if not self.split or not self.split.replace("_", "").replace("-", "").isalnum():
             raise UserError(f"split must be a simple name like train or val, got {self.split!r}")
         frame_size(self.scale)
+        if self.view is not None and not all(32 <= v <= 4000 for v in self.view):
+            raise UserError(f"a view is 32 to 4000 px on a side, got {self.view[0]} x "
+                            f"{self.view[1]}")
+
+    @property
+    def frame(self) -> Frame | None:
+        """The rendered view: the yarn frame at ``scale`` (None), or with ``view`` = (width,
+        height) a window of that many pixels at the scale's pitch, centred on the yarn --
+        a detail view for nets that need fine pixels (the fibers' slant, ``alpha``) at a
+        fraction of the full frame's cost."""
+        if self.view is None:
+            return None
+        return Frame(self.view[0], self.view[1], pixel_size_mm(self.scale))
 
     def settings(self) -> dict[str, Any]:
         """Everything a sample's bytes depend on (``count`` aside): JSON-ready.  Settings
@@ -110,6 +125,8 @@ class GenerateOptions:
         del d["count"]
         if self.spp_max is None:  # as recorded before sample-count ranges existed
             del d["spp_max"]
+        if self.view is None:  # as recorded before detail views existed
+            del d["view"]
         for group, implicit in _ADDED_LATER.items():
             for k, v in implicit.items():
                 if d[group].get(k) == v:
@@ -215,9 +232,9 @@ def make_sample(folder: str, opts: GenerateOptions, index: int) -> Record:
     plan = sample_plan(opts, index)
     spp = _renderer.sample_count(opts.scale, plan.spp)
     image = _renderer.render(plan.params, plan.fiber_seed, opts.scale, spp, plan.render_seed,
-                             plan.photometric)
+                             plan.photometric, opts.frame)
     write_png(Path(folder, image_name(index)), encode(image, plan.photometric))
-    width, height = frame_size(opts.scale)
+    width, height = opts.view or frame_size(opts.scale)
     return Record(Path(folder, image_name(index)), pixel_size_mm(opts.scale), plan.params,
                   plan.fiber_seed, setup=opts.scene.setup, index=index, info={
                       "split": opts.split, "render_seed": plan.render_seed,

@@ -98,6 +98,22 @@ def test_manifest_contract(tmp_path):
     assert len({r.seed for r in records}) == 3
 
 
+def test_a_view_is_a_window_of_the_same_yarns_at_the_scales_pitch(tmp_path):
+    """``--view W H``: the same samples (yarns, seeds) as the full frame, rendered as a W x H
+    px window at the scale's pitch; the settings record the view only when there is one,
+    so datasets made before views resume."""
+    full = GenerateOptions(count=2, seed=1, scale=0.1, spp=2)
+    detail = GenerateOptions(count=2, seed=1, scale=0.1, spp=2, view=(48, 32))
+    assert "view" not in full.settings() and detail.settings()["view"] == [48, 32]
+    records = generate_dataset(tmp_path / "d", detail, workers=1)
+    for r, line in zip(records, check_dataset(tmp_path / "d", 2), strict=True):
+        assert (line["width"], line["height"]) == (48, 32)
+        assert r.pixel_size_mm == pytest.approx(0.1)
+        assert r.params == sample_plan(full, r.index).params
+    with pytest.raises(UserError, match="32 to 4000 px"):
+        GenerateOptions(count=1, view=(8, 32))
+
+
 def test_kill_and_rerun_gives_exactly_n_samples_with_the_same_bytes(tmp_path):
     count, out = 8, tmp_path / "ds"
     args = ipm_args("generate", "--count", count, "--out", out, "--seed", 3, "--workers", 2,

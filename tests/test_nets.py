@@ -1,6 +1,7 @@
 """ipm.nets building blocks: smoke / cardinality / exception / gradcheck (kornia style),
 tasks, safetensors round trips and the exposure augmentation."""
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -169,6 +170,19 @@ def test_net_round_trip(tmp_path):
     assert not any(k.startswith("d.") for k in tensors)
 
 
+def test_a_detail_net_keeps_its_crop(tmp_path):
+    """A detail net's input size (``crop_px``) survives saving; a net without one saves the
+    config it always had (so runs made before detail nets resume)."""
+    net = YarnNet(NetConfig("alpha", width=0.125, input_scale=1.0, crop_px=(48, 64))).eval()
+    save_net(tmp_path / "a", net, {})
+    back, _ = load_net(tmp_path / "a")
+    assert back.config == net.config and back.config.crop == (48, 64)
+    assert back.config.to_dict() == json.loads(json.dumps(back.config.to_dict()))
+    assert "crop_px" not in NetConfig("alpha", input_scale=0.25).to_dict()
+    with pytest.raises(ValueError, match="at least 32"):
+        NetConfig("alpha", crop_px=(16, 64))
+
+
 def test_checkpoint_round_trip(tmp_path):
     net = YarnNet(NetConfig("alpha", width=0.125, input_scale=0.1))
     opt = torch.optim.Adam(net.parameters(), 1e-3)
@@ -327,7 +341,6 @@ def two_scale_models(tmp_path_factory):
     """The shipped models plus ``m`` and ``alpha`` at input scale 0.5 (0.02 mm per pixel), as
     a user's ensemble with nets at two scales (their weights: the 0.25 nets', which a
     ResNet takes at any input size; their validation error halved, to tell them apart)."""
-    import json
     import shutil
 
     from ipm.nets.ensemble import SHIPPED

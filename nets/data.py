@@ -82,6 +82,11 @@ class Frames:
         if self.max_height and img.shape[0] > self.max_height:
             top = (img.shape[0] - self.max_height) // 2
             img = img[top:top + self.max_height]
+        if self.labels is None and img.shape[1] < self.min_size[1]:
+            # a real photo narrower than the crop (a microscope's small view) is tiled along
+            # the yarn: periodic, which keeps the twist's handedness (a mirror would flip it)
+            img = np.pad(img, ((0, 0), (0, self.min_size[1] - img.shape[1]), (0, 0)),
+                         mode="wrap")
         return np.round(img * 255).astype(np.uint8)
 
     def __getitem__(self, i: int) -> np.ndarray:

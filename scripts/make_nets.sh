@@ -12,6 +12,12 @@
 # training crop in another look (`ipm train --look`), since real backlit captures differ in
 # all of these.
 #
+# DETAIL=1 (the default for frontlit) adds detail nets for the fiber twist `alpha` and the
+# fibers per ply `m`: trained on 3.2 x 3.2 mm windows of the same yarns rendered at 0.01 mm
+# per pixel (`ipm generate --scale 1 --view 320 320`, a 256 x 256 px input), where the
+# fibers' slant shows; the ensemble uses them for photos of 0.0125 mm per pixel or finer
+# and the 0.04 mm nets otherwise.  The shipped backlit nets were made with DETAIL=0.
+#
 # Every step resumes: a finished dataset or training run is left as it is, so a stopped
 # script is simply run again.  Training runs as two one-thread processes side by side (the
 # two cores of the reference machine), every net from scratch at lr 1e-3 with a cosine
@@ -20,6 +26,7 @@
 # follow the guided prior with flyaways in the real yarns' ranges (ipm/prior.py).
 set -euo pipefail
 DATA="${1:-data}"; RUNS="${2:-runs}"; OUT="${3:-nets/models}"; SETUP="${SETUP:-frontlit}"
+if [ "$SETUP" = frontlit ]; then DETAIL="${DETAIL:-1}"; else DETAIL="${DETAIL:-0}"; fi
 mkdir -p "$DATA" "$RUNS"
 if [ "$SETUP" = frontlit ]; then
   look=(); augment=()
@@ -29,6 +36,17 @@ fi
 ipm generate --out "$DATA/train" --count 2000 --seed 0 --spp 4-24 "${look[@]}"
 ipm generate --out "$DATA/val" --count 200 --seed 1 --split val --spp 4-24 "${look[@]}"
 ipm generate --out "$DATA/test" --count 200 --seed 20261122 --split test "${look[@]}"
+detail_runs=()
+if [ "$DETAIL" = 1 ]; then
+  # the same yarns as train and val, as windows at 0.01 mm; the test yarns as whole frames
+  # at 0.01 mm (the paper's pitch), where the ensemble uses the detail nets
+  view=(--scale 1 --view 320 320 --spp 4-24 "${look[@]}")
+  ipm generate --out "$DATA-detail/train" --count 2000 --seed 0 "${view[@]}"
+  ipm generate --out "$DATA-detail/val" --count 200 --seed 1 --split val "${view[@]}"
+  ipm generate --out "$DATA/test-full" --count 200 --seed 20261122 --split test --scale 1 \
+    "${look[@]}"
+  detail_runs=("$RUNS/make-e=-detail" "$RUNS/make-f=-detail")
+fi
 common=(--preset ensemble --data "$DATA/train" --val "$DATA/val" --blur 1.5 --seed 0 --lr 1e-3
         "${augment[@]}")
 train() { OMP_NUM_THREADS=1 ipm train "${common[@]}" "$@"; }
@@ -37,25 +55,37 @@ train() { OMP_NUM_THREADS=1 ipm train "${common[@]}" "$@"; }
 (train --nets alpha_ply,R_ply,r_x,r_y --epochs 12 --out "$RUNS/make-c" &&
  train --nets flyaways --epochs 8 --out "$RUNS/make-d") & second=$!
 wait "$first"; wait "$second"  # a failed training fails the script
+if [ "$DETAIL" = 1 ]; then
+  detail=(--preset ensemble --data "$DATA-detail/train" --val "$DATA-detail/val" --blur 1.5
+          --seed 0 --lr 1e-3 --input-scale 1 --crop 256 256 --epochs 18 "${augment[@]}")
+  (OMP_NUM_THREADS=1 ipm train "${detail[@]}" --nets alpha --out "$RUNS/make-e") & first=$!
+  (OMP_NUM_THREADS=1 ipm train "${detail[@]}" --nets m --out "$RUNS/make-f") & second=$!
+  wait "$first"; wait "$second"
+fi
 # the ensemble: each net from the last run that trained it
-python3 - "$OUT" "$RUNS/make-a" "$RUNS/make-b" "$RUNS/make-c" "$RUNS/make-d" <<'PY'
+python3 - "$OUT" "$RUNS/make-a" "$RUNS/make-b" "$RUNS/make-c" "$RUNS/make-d" \
+  "${detail_runs[@]}" <<'PY'
 """Gather the runs' nets into one ensemble folder (written beside, then swapped in); a net
-of a later run replaces the same net of an earlier one."""
+of a later run replaces the same net of an earlier one.  A run given as RUN=SUFFIX has its
+nets renamed NAME+SUFFIX (the detail nets, beside the nets of the same parameters)."""
 import json, shutil, sys
 from pathlib import Path
 
-out, runs = Path(sys.argv[1]), [Path(r) for r in sys.argv[2:]]
+out = Path(sys.argv[1])
+runs = [(Path(r.partition("=")[0]), r.partition("=")[2]) for r in sys.argv[2:]]
 order = ["n", "thickness", "m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply", "flyaways"]
+order += [f"{net}{suffix}" for run, suffix in runs if suffix
+          for net in json.loads((run / "ensemble.json").read_text())["nets"]]
 tmp = out.with_name(out.name + ".new")
 shutil.rmtree(tmp, ignore_errors=True)
 tmp.mkdir(parents=True)
-for run in runs:
+for run, suffix in runs:
     for net in json.loads((run / "ensemble.json").read_text())["nets"]:
-        shutil.rmtree(tmp / net, ignore_errors=True)
-        (tmp / net).mkdir()
+        shutil.rmtree(tmp / f"{net}{suffix}", ignore_errors=True)
+        (tmp / f"{net}{suffix}").mkdir()
         for f in (run / net).glob("model.*"):  # the net, not its training checkpoint
-            shutil.copy(f, tmp / net / f.name)
-setup = json.loads((runs[0] / "ensemble.json").read_text()).get("setup", "frontlit")
+            shutil.copy(f, tmp / f"{net}{suffix}" / f.name)
+setup = json.loads((runs[0][0] / "ensemble.json").read_text()).get("setup", "frontlit")
 manifest = {"format": "ipm.nets/1", "preset": "ensemble", "setup": setup, "nets": order}
 assert sorted(p.name for p in tmp.iterdir()) == sorted(order), "a net is missing"
 (tmp / "ensemble.json").write_text(json.dumps(manifest, indent=2))

@@ -389,3 +389,20 @@ def test_ply_counts_are_the_n_nets_most_likely_classes_first():
     assert ens.ply_counts(photo, most=2) == counts[:len(ens.ply_counts(photo, most=2))]
     assert len(ens.ply_counts(photo, most=2)) in (1, 2)
     assert ens.ply_counts(photo, most=5, mass=0.0) == counts[:1]
+
+
+def test_a_real_photo_narrower_than_the_crop_is_tiled_along_the_yarn(tmp_path):
+    """Unlabelled real photos (the domain-adaptation set) of a field smaller than the nets'
+    crop are repeated along the yarn to the crop's width, periodically (a mirror would flip
+    the twist's handedness); their rows are padded as any photo's."""
+    from PIL import Image
+
+    from ipm.nets.data import Frames
+
+    rng = np.random.default_rng(0)
+    Image.fromarray(rng.integers(0, 256, (320, 500, 3), dtype=np.uint8)).save(tmp_path / "a.png")
+    frames = Frames.real(tmp_path, 0.25, (48, 200), pixel_size_mm=0.01, invert=False,
+                         frame_height=600)
+    img = frames[0]  # 5 x 3.2 mm: 125 x 80 px at 0.04 mm
+    assert img.shape == (80, 200, 3)
+    assert np.array_equal(img[:, 125:], img[:, :75])

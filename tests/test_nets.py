@@ -359,12 +359,12 @@ def two_scale_models(tmp_path_factory):
     return folder
 
 
-@pytest.mark.parametrize("pixel_size, m_net", [(0.01, "m-0.5"), (0.02, "m-0.5"),
+@pytest.mark.parametrize("pixel_size, m_net", [(0.01, "m-detail"), (0.02, "m-0.5"),
                                                (0.04, "m"), (0.1, "m")])
 def test_ensemble_picks_the_finest_net_the_photo_supplies(two_scale_models, pixel_size, m_net):
-    """Nets of one parameter at two input scales: a photo of 0.02 mm per pixel or finer gets
-    the 0.02 mm nets, a coarser one the 0.04 mm nets (upsampling would blur it), and every
-    parameter is decided by one net."""
+    """Nets of one parameter at three input scales: a photo of 0.01 mm per pixel gets the
+    shipped detail nets, one of 0.02 mm the 0.02 mm nets, a coarser one the 0.04 mm nets
+    (upsampling would blur it), and every parameter is decided by one net."""
     from ipm.nets.ensemble import Ensemble
 
     ens = Ensemble.load(two_scale_models)

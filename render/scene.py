@@ -181,8 +181,9 @@ def setup_options(name: str) -> SceneOptions:
 
 @dataclass(frozen=True)
 class Frame:
-    """A view other than the yarn frame (a knitted patch): ``width`` x ``height`` pixels of
-    ``pixel_size_mm`` each, centred on the world origin; camera, lights and card as ever."""
+    """A view other than the yarn frame (a knitted patch, a photo's smaller field, a detail
+    window for the nets): ``width`` x ``height`` pixels of ``pixel_size_mm`` each, centred on
+    the world origin; camera, lights and card as ever."""
 
     width: int
     height: int

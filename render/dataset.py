@@ -230,11 +230,11 @@ def make_sample(folder: str, opts: GenerateOptions, index: int) -> Record:
     from ipm.render.photometric import encode
 
     plan = sample_plan(opts, index)
-    spp = _renderer.sample_count(opts.scale, plan.spp)
+    spp = _renderer.sample_count(opts.scale, plan.spp, opts.frame)
     image = _renderer.render(plan.params, plan.fiber_seed, opts.scale, spp, plan.render_seed,
                              plan.photometric, opts.frame)
     write_png(Path(folder, image_name(index)), encode(image, plan.photometric))
-    width, height = opts.view or frame_size(opts.scale)
+    height, width = image.shape[:2]
     return Record(Path(folder, image_name(index)), pixel_size_mm(opts.scale), plan.params,
                   plan.fiber_seed, setup=opts.scene.setup, index=index, info={
                       "split": opts.split, "render_seed": plan.render_seed,

@@ -102,11 +102,12 @@ class Renderer:
             self._scenes[key] = (scene, self.mi.traverse(scene))
         return self._scenes[key]
 
-    def sample_count(self, scale: float, spp: int) -> int:
+    def sample_count(self, scale: float, spp: int, frame: Frame | None = None) -> int:
         """The samples per pixel the scene's sampler takes when asked for ``spp``: multijitter
         rounds up to a product of two near-equal integers (7 -> 8, 13 -> 15), orthogonal to a
-        prime square.  Rendering with the count this returns logs no rounding warning."""
-        sampler = self._scene(scale)[0].sensors()[0].sampler()
+        prime square.  Rendering with the count this returns logs no rounding warning.  Asked
+        of the scene that renders ``frame`` (a view), so that no other scene is loaded."""
+        sampler = self._scene(scale, frame)[0].sensors()[0].sampler()
         logger = self.mi.Thread.thread().logger()
         level = logger.log_level()
         logger.set_log_level(self.mi.LogLevel.Error)

@@ -11,6 +11,12 @@ photo's at the truth +- 2.5, 5, 7.5 and 10 % of the parameter's prior range.  A 
 group) pair passes when, over the yarns, the sweep's minimum sits within 5 % of the range of
 the truth (median) and the group's spread across fiber seeds at the truth is small against
 its rise at +- 10 % (median ratio < 0.25).  The weights of the search follow from this table.
+An integer parameter (``m``) is swept at the rounded values.
+
+With ``--detail W`` each evaluation also renders a 3.2 x 3.2 mm window at the detail nets'
+pitch, compared with the photo's by those nets' readings (groups ``detail_net_*``,
+:class:`ipm.refine.objective.Detail`); the photos must be as fine as the detail nets
+(``data/test-full``, 0.01 mm).
 
     python -m ipm.benchmarks.identifiability --data data/test --out docs/identifiability.md
 """
@@ -31,6 +37,8 @@ from ipm.refine.compare import REFINED
 STEPS = (-0.1, -0.075, -0.05, -0.025, 0.0, 0.025, 0.05, 0.075, 0.1)
 SPREAD_SEEDS = (0, 1, 2, 3, 4)
 TOTAL = "search loss"
+#: (width, height) px of the ``--detail`` window: the detail nets' training windows.
+DETAIL_WINDOW = (320, 320)
 
 
 def group_losses(objective, params, seed: int) -> dict[str, float]:
@@ -50,6 +58,7 @@ def sweep(objective, truth, name: str) -> dict[str, dict]:
     steps, losses = [], []
     for d in STEPS:
         v = getattr(truth, name) + d * span
+        v = round(v) if iv.integer else v
         if iv.lo <= v <= iv.hi:
             steps.append(d)
             losses.append(group_losses(objective, truth.replace(**{name: v}), 0))
@@ -66,29 +75,41 @@ def sweep(objective, truth, name: str) -> dict[str, dict]:
 
 
 def run(data: str, names, yarns: int, scale: float, spp: int, seeds_per_eval: int,
-        learned: float = 0.0) -> dict:
+        learned: float = 0.0, detail: float = 0.0) -> dict:
     """The sweeps; with ``learned`` > 0 the loss also holds the shipped nets' readings (groups
-    ``net_*``, :meth:`ipm.nets.ensemble.Ensemble.readings`) at that weight."""
+    ``net_*``, :meth:`ipm.nets.ensemble.Ensemble.readings`) at that weight, with ``detail``
+    > 0 the detail nets' readings of a detail window (module doc)."""
+    from functools import partial
+
     from ipm.benchmarks.report import load_records
+    from ipm.frame import PIXEL_SIZE_MM
+    from ipm.nets.ensemble import Ensemble
     from ipm.refine.fit import match_colour, photo_tilt
-    from ipm.refine.objective import RenderObjective
+    from ipm.refine.objective import Detail, RenderObjective, centre_crop
     from ipm.render.renderer import Renderer
-    from ipm.render.scene import setup_options
+    from ipm.render.scene import Frame, setup_options
 
     records = load_records(data, yarns)
     setup = records[0].setup
-    readings = None
-    if learned > 0:
-        from ipm.nets.ensemble import Ensemble
-
-        readings = Ensemble.load(setup=setup).readings
+    ensemble = Ensemble.load(setup=setup) if learned > 0 or detail > 0 else None
+    readings = ensemble.readings if learned > 0 else None
     renderer = Renderer(options=setup_options(setup))
     results: dict[str, list] = {n: [] for n in names}
     for i, rec in enumerate(records):
         photo = rec.photo().at_pitch(scale)
+        window = None
+        if detail > 0:
+            nets, pitch = ensemble.detail_nets(rec.pixel_size_mm)
+            if not nets:
+                raise SystemExit(f"{data}: photos of {rec.pixel_size_mm:g} mm are too coarse "
+                                 "for the detail nets")
+            frame = Frame(*DETAIL_WINDOW, pitch)
+            window = Detail(centre_crop(rec.photo().at_pitch(PIXEL_SIZE_MM / pitch),
+                                        *DETAIL_WINDOW),
+                            frame, partial(ensemble.readings, names=nets), detail, spp)
         objective = RenderObjective(renderer, photo, scale, spp, seeds_per_eval=seeds_per_eval,
                                     tilt_deg=photo_tilt(photo), readings=readings,
-                                    readings_weight=learned)
+                                    readings_weight=learned, detail=window)
         truth = match_colour(objective, rec.params, photo)
         for n in names:
             results[n].append(sweep(objective, truth, n))
@@ -144,12 +165,15 @@ def main() -> None:
     ap.add_argument("--seeds-per-eval", type=int, default=2)
     ap.add_argument("--learned", type=float, default=0.0, help="weight of the nets' readings "
                     "in the loss (0: the image statistics alone)")
+    ap.add_argument("--detail", type=float, default=0.0, help="weight of the detail nets' "
+                    "readings of a detail window in the loss (0: off)")
     args = ap.parse_args()
     results = run(args.data, args.params.split(","), args.yarns, args.scale, args.spp,
-                  args.seeds_per_eval, args.learned)
+                  args.seeds_per_eval, args.learned, args.detail)
     command = "python -m ipm.benchmarks.identifiability " + " ".join(sys.argv[1:])
     text = summary(results, args.scale, args.spp, args.yarns, args.data, command)
     learned = f", every net_* group {args.learned:g}" if args.learned else ""
+    learned += f", every detail_* group {args.detail:g}" if args.detail else ""
     text += (f"\nFiber seeds averaged per evaluation: {args.seeds_per_eval}; weights of the "
              f"search loss {DEFAULT_WEIGHTS}{learned}.\n")
     if args.out:

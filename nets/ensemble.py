@@ -151,20 +151,32 @@ class Ensemble:
             result[name] = net.predict(x.to(device)).mean(0).cpu().numpy()
         return result
 
-    def readings(self, image_srgb: np.ndarray, pixel_size_mm: float, crops: int = 3
-                 ) -> dict[str, torch.Tensor]:
+    def readings(self, image_srgb: np.ndarray, pixel_size_mm: float, crops: int = 3,
+                 names: tuple[str, ...] | None = None) -> dict[str, torch.Tensor]:
         """What the regression nets read in an sRGB image ``(H, W, 3)`` of ``pixel_size_mm``:
         each one's output (its parameters, normalised to their prior range), averaged over
         ``crops`` crops, as statistics groups ``net_<name>`` ``(1, K)`` float64.  The
         refinement compares them between the photo and each render
         (:class:`ipm.refine.objective.RenderObjective`): a render the nets read as they read
         the photo looks like it to them, whatever bias they have in common.  Why: the
-        hand-made statistics do not identify ``r_y`` or ``alpha``, which the nets read."""
+        hand-made statistics do not identify ``r_y`` or ``alpha``, which the nets read.
+        ``names``: only these nets (of those :meth:`chosen` for the pixel size)."""
         names = tuple(n for n, net in self.nets.items()
-                      if not net.config.spec.is_classification)
+                      if not net.config.spec.is_classification and (names is None or n in names))
         outputs = self.outputs(Photo(image_srgb, pixel_size_mm, self.setup), crops, names)
         return {f"net_{k}": torch.from_numpy(v.astype(np.float64))[None]
                 for k, v in outputs.items()}
+
+    def detail_nets(self, pixel_size_mm: float) -> tuple[tuple[str, ...], float]:
+        """The regression nets :meth:`chosen` for ``pixel_size_mm`` that read a small window
+        (a ``crop_px`` of their own: the detail nets), and their pixel pitch in mm; ``((),
+        0.0)`` when the photo's pixels are too coarse for them."""
+        names = tuple(n for n, net in self.chosen(pixel_size_mm).items()
+                      if net.config.crop_px is not None
+                      and not net.config.spec.is_classification)
+        if not names:
+            return (), 0.0
+        return names, PIXEL_SIZE_MM / self.nets[names[0]].config.input_scale
 
     def ply_counts(self, photo: Photo, crops: int = 3, most: int = 2, mass: float = 0.9
                    ) -> tuple[int, ...]:

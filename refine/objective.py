@@ -9,10 +9,12 @@ is deterministic for a given fiber seed: the render seed is fixed.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
+from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb
 from ipm.refine.stats import GROUPS, group_distances, stat_distance, yarn_statistics
@@ -32,6 +34,23 @@ DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum":
 
 #: Learned statistics of an sRGB image at a pixel size (mm): named groups of (1, K) tensors.
 Readings = Callable[[np.ndarray, float], dict[str, torch.Tensor]]
+
+
+@dataclass(frozen=True)
+class Detail:
+    """A second view every evaluation renders: a small window at the detail nets' pitch
+    (``frame``, centred on the yarn), compared with the same window of the photo (``photo``,
+    sRGB at ``frame.pixel_size_mm``) by the ``readings`` of the detail nets alone, at
+    ``weight``, as groups ``detail_<group>``.  Why: at the search's pitch the fibers do not
+    show, and neither the hand-made statistics nor the coarse nets see the fiber twist
+    ``alpha`` (docs/identifiability.md); the detail nets read it where the fibers' slant
+    shows (``nets/models/README.md``)."""
+
+    photo: np.ndarray
+    frame: Frame
+    readings: Readings
+    weight: float = 1.0
+    spp: int = 4
 
 
 def centre_crop(img: np.ndarray, h: int, w: int) -> np.ndarray:
@@ -56,14 +75,15 @@ class RenderObjective:
     :meth:`ipm.nets.ensemble.Ensemble.readings`), computed alike on the photo and every
     render and weighted by ``readings_weight``.  ``frame``: render only this view (a
     photo's smaller field of view, at its pitch, :func:`ipm.refine.fit.search_view`)
-    instead of the yarn frame at ``scale``.  ``evaluations`` counts renders.
+    instead of the yarn frame at ``scale``.  ``detail``: a second view rendered and compared
+    per evaluation (:class:`Detail`).  ``evaluations`` counts renders of the main view.
     """
 
     def __init__(self, renderer, photo: np.ndarray, scale: float, spp: int,
                  render_seed: int = 0, weights: dict[str, float] | None = None,
                  seeds_per_eval: int = 1, tilt_deg: float = 0.0,
                  readings: Readings | None = None, readings_weight: float = 1.0,
-                 frame: Frame | None = None) -> None:
+                 frame: Frame | None = None, detail: Detail | None = None) -> None:
         from ipm.render.scene import frame_size, pixel_size_mm
 
         w, h = frame_size(scale) if frame is None else (frame.width, frame.height)
@@ -75,9 +95,14 @@ class RenderObjective:
         self.capture = Photometric(rotation_deg=tilt_deg)
         self.readings = readings
         self.pixel_size_mm = pixel_size_mm(scale) if frame is None else frame.pixel_size_mm
+        self.detail = detail
         self.photo_stats = self.statistics(centre_crop(photo, *self.size))
         self.weights = {**self.weights, **{k: readings_weight for k in self.photo_stats
                                            if k not in GROUPS}}
+        if detail is not None:
+            self.photo_stats |= self.detail_statistics(detail.photo)
+            self.weights |= {k: detail.weight for k in self.photo_stats
+                             if k.startswith("detail_")}
         self.evaluations = 0
 
     def statistics(self, img: np.ndarray) -> dict[str, torch.Tensor]:
@@ -87,6 +112,21 @@ class RenderObjective:
         if self.readings is not None:
             stats |= self.readings(img, self.pixel_size_mm)
         return stats
+
+    def detail_statistics(self, img: np.ndarray) -> dict[str, torch.Tensor]:
+        """The detail nets' readings of an sRGB window at the detail pitch, as groups
+        ``detail_<group>``."""
+        d = self.detail
+        window = centre_crop(img, min(d.frame.height, img.shape[0]),
+                             min(d.frame.width, img.shape[1]))
+        return {f"detail_{k}": v for k, v in d.readings(window, d.frame.pixel_size_mm).items()}
+
+    def render_detail(self, params: YarnParams, seed: int) -> np.ndarray:
+        """The sRGB render of the :class:`Detail` window."""
+        d = self.detail
+        scale = PIXEL_SIZE_MM / d.frame.pixel_size_mm
+        return linear_to_srgb(self.renderer.render(params, seed, scale, d.spp,
+                                                   self.render_seed, self.capture, d.frame))
 
     def render(self, params: YarnParams, seed: int) -> np.ndarray:
         """The sRGB render (H, W, 3) the objective compares, cut to the photo's extent."""
@@ -99,8 +139,11 @@ class RenderObjective:
         return float(stat_distance(self.statistics(img), self.photo_stats, self.weights)[0])
 
     def _mean_stats(self, params: YarnParams, seed: int) -> dict[str, torch.Tensor]:
-        stats = [self.statistics(self.render(params, seed + 1000 * k))
-                 for k in range(self.seeds_per_eval)]
+        stats = []
+        for k in range(self.seeds_per_eval):
+            stats.append(self.statistics(self.render(params, seed + 1000 * k)))
+            if self.detail is not None:
+                stats[-1] |= self.detail_statistics(self.render_detail(params, seed + 1000 * k))
         return {g: torch.stack([s[g] for s in stats]).mean(dim=0) for g in stats[0]}
 
     def group_distances(self, params: YarnParams, seed: int) -> dict[str, float]:

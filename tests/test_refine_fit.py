@@ -148,6 +148,37 @@ def test_the_nets_readings_enter_the_loss_at_their_weight(photo):
     assert thick["net_R_ply"] > 4 * d["net_R_ply"]
 
 
+def test_a_detail_window_enters_the_loss_through_the_detail_nets_alone(photo):
+    """A Detail view: each evaluation also renders a window at the detail nets' pitch, and
+    only those nets' readings of it and of the photo's window are groups of the loss, at the
+    weight asked; a yarn of four times as many fibers reads further from the photo's m than
+    the true yarn."""
+    from functools import partial
+
+    from ipm.nets.ensemble import Ensemble
+    from ipm.photo import Photo
+    from ipm.refine.objective import Detail, RenderObjective
+    from ipm.render.renderer import Renderer
+    from ipm.render.scene import Frame
+
+    ensemble, renderer, golden = Ensemble.load(), Renderer(), preset("golden")
+    names, pitch = ensemble.detail_nets(0.01)
+    assert set(names) == {"alpha-detail", "m-detail"} and pitch == pytest.approx(0.01)
+    assert ensemble.detail_nets(0.04) == ((), 0.0)
+    frame = Frame(320, 320, pitch)
+    window = linear_to_srgb(renderer.render(golden, 5, 1.0, 16, frame=frame))
+    small = Photo.read(photo, 0.04).at_pitch(0.2)
+    plain = RenderObjective(renderer, small, 0.2, 4)
+    detail = RenderObjective(renderer, small, 0.2, 4, detail=Detail(
+        window, frame, partial(ensemble.readings, names=names), weight=3.0, spp=8))
+    groups = {k for k in detail.photo_stats if k.startswith("detail_")}
+    assert groups == {"detail_net_alpha-detail", "detail_net_m-detail"}
+    d = detail.group_distances(golden, 1)
+    assert detail(golden, 1) == pytest.approx(plain(golden, 1) + 3 * sum(d[k] for k in groups))
+    dense = detail.group_distances(golden.replace(m=4 * golden.m), 1)
+    assert dense["detail_net_m-detail"] > 4 * d["detail_net_m-detail"]
+
+
 def test_a_small_fine_photo_is_searched_over_its_own_view_at_a_finer_pitch():
     """A microscope's 3 x 2.3 mm at 0.0021 mm per pixel: searched over that view with as
     many pixels as the yarn frame has at the search's scale (not 60 x 45 px); a photo as

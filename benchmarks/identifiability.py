@@ -37,8 +37,6 @@ from ipm.refine.compare import REFINED
 STEPS = (-0.1, -0.075, -0.05, -0.025, 0.0, 0.025, 0.05, 0.075, 0.1)
 SPREAD_SEEDS = (0, 1, 2, 3, 4)
 TOTAL = "search loss"
-#: (width, height) px of the ``--detail`` window: the detail nets' training windows.
-DETAIL_WINDOW = (320, 320)
 
 
 def group_losses(objective, params, seed: int) -> dict[str, float]:
@@ -79,15 +77,12 @@ def run(data: str, names, yarns: int, scale: float, spp: int, seeds_per_eval: in
     """The sweeps; with ``learned`` > 0 the loss also holds the shipped nets' readings (groups
     ``net_*``, :meth:`ipm.nets.ensemble.Ensemble.readings`) at that weight, with ``detail``
     > 0 the detail nets' readings of a detail window (module doc)."""
-    from functools import partial
-
     from ipm.benchmarks.report import load_records
-    from ipm.frame import PIXEL_SIZE_MM
     from ipm.nets.ensemble import Ensemble
     from ipm.refine.fit import match_colour, photo_tilt
-    from ipm.refine.objective import Detail, RenderObjective, centre_crop
+    from ipm.refine.objective import Detail, RenderObjective
     from ipm.render.renderer import Renderer
-    from ipm.render.scene import Frame, setup_options
+    from ipm.render.scene import setup_options
 
     records = load_records(data, yarns)
     setup = records[0].setup
@@ -99,14 +94,11 @@ def run(data: str, names, yarns: int, scale: float, spp: int, seeds_per_eval: in
         photo = rec.photo().at_pitch(scale)
         window = None
         if detail > 0:
-            nets, pitch = ensemble.detail_nets(rec.pixel_size_mm)
-            if not nets:
+            nets = ensemble.detail_readings(rec.pixel_size_mm)
+            if nets is None:
                 raise SystemExit(f"{data}: photos of {rec.pixel_size_mm:g} mm are too coarse "
                                  "for the detail nets")
-            frame = Frame(*DETAIL_WINDOW, pitch)
-            window = Detail(centre_crop(rec.photo().at_pitch(PIXEL_SIZE_MM / pitch),
-                                        *DETAIL_WINDOW),
-                            frame, partial(ensemble.readings, names=nets), detail, spp)
+            window = Detail.of_photo(rec.photo(), *nets, weight=detail, spp=spp)
         objective = RenderObjective(renderer, photo, scale, spp, seeds_per_eval=seeds_per_eval,
                                     tilt_deg=photo_tilt(photo), readings=readings,
                                     readings_weight=learned, detail=window)

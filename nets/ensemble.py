@@ -10,6 +10,7 @@ hierarchy level) keep :class:`YarnParams`' defaults.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -177,6 +178,13 @@ class Ensemble:
         if not names:
             return (), 0.0
         return names, PIXEL_SIZE_MM / self.nets[names[0]].config.input_scale
+
+    def detail_readings(self, pixel_size_mm: float):
+        """``(readings, pitch_mm)``: :meth:`readings` of the :meth:`detail_nets` alone and
+        their pitch, for :class:`ipm.refine.objective.Detail`; None when the photo's pixels
+        are too coarse for them."""
+        names, pitch = self.detail_nets(pixel_size_mm)
+        return (partial(self.readings, names=names), pitch) if names else None
 
     def ply_counts(self, photo: Photo, crops: int = 3, most: int = 2, mass: float = 0.9
                    ) -> tuple[int, ...]:

@@ -25,6 +25,8 @@ _DEFAULT = SearchOptions()
 _LEARNED_HELP = ("weight of the nets' readings in the loss: renders the nets read as they "
                  "read the photo (0: the image statistics alone)")
 
+_DETAIL_HELP = ("weight of the detail nets' readings (alpha, m) of a window rendered at "
+                "their pitch each evaluation, for photos as fine as they need (0: none)")
 _PARAMS_HELP = ("continuous parameters to search, comma-separated (alpha_ply,R_ply); "
                 "stages separated by ';' (alpha_ply;R_ply,r_x: those from alpha_ply's best); "
                 "the others keep the nets' values")
@@ -69,6 +71,7 @@ def fit(
     variant: Annotated[str | None, typer.Option(help="Mitsuba variant")] = None,
     setup: SetupOpt = "frontlit",
     learned: Annotated[float, typer.Option(min=0, help=_LEARNED_HELP)] = DEFAULT_LEARNED,
+    detail: Annotated[float, typer.Option(min=0, help=_DETAIL_HELP)] = 0.0,
 ) -> None:
     """Infer a yarn's parameters from a photo: the neural ensemble, and with --refine a
     render-and-compare search; writes params.json (neural and refined parameters, their
@@ -80,7 +83,7 @@ def fit(
 
     options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
                                               budget=budget, time_s=time_limit),
-                         ply_counts=ply_counts, learned=learned)
+                         ply_counts=ply_counts, learned=learned, detail=detail)
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
                                          "params.json", "knit.png", "knit.json")], [photo])
     if knit is not None:
@@ -130,7 +133,8 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
                      sigma=ensemble.sigma(pixel_size) if prior else None,
                      ply_counts=(ensemble.ply_counts(shot, most=options.ply_counts)
                                  if options.ply_counts > 1 else ()),
-                     readings=ensemble.readings)
+                     readings=ensemble.readings,
+                     detail=ensemble.detail_readings(pixel_size))
     if w := ensemble.upsampling_warning(pixel_size):
         result.warnings.insert(0, w)
     for w in result.warnings:
@@ -205,6 +209,7 @@ def compare(
                                               "(frontlit, backlit); a dataset records its "
                                               "own")] = None,
     learned: Annotated[float, typer.Option(min=0, help=_LEARNED_HELP)] = DEFAULT_LEARNED,
+    detail: Annotated[float, typer.Option(min=0, help=_DETAIL_HELP)] = 0.0,
 ) -> None:
     """Neural-only vs refined over many photos: `ipm fit --refine` on each, then a table
     (CSV and Markdown) and a figure of photo | neural | refined."""
@@ -218,7 +223,7 @@ def compare(
 
     options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
                                               budget=budget), ply_counts=ply_counts,
-                         learned=learned)
+                         learned=learned, detail=detail)
     listed = cmp.photos_in(photos, pixel_size, count, setup)
     setup = listed[0].setup
     ensemble = Ensemble.load(models, setup=setup)
@@ -230,6 +235,7 @@ def compare(
     settings |= {"blur_mm": blur_mm} if blur_mm else {}  # only when set: older folders resume
     settings |= {"setup": setup} if setup != "frontlit" else {}
     settings |= {"learned": learned} if learned else {}
+    settings |= {"detail": detail} if detail else {}
     settings |= {"ply_counts": ply_counts} if ply_counts > 1 else {}  # (older: one)
     later = options.search.later
     settings |= {"later_stages": [list(s) for s in later]} if later else {}

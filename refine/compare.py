@@ -77,12 +77,12 @@ def photos_in(folder: Path, pixel_size_mm: float, count: int | None = None,
 
 def fit_row(record: Record, photo: Photo, neural: YarnParams, renderer, options,
             sigma: dict[str, float] | None, ply_counts: Sequence[int] = (),
-            readings=None) -> dict:
+            readings=None, detail=None) -> dict:
     """``ipm fit --refine`` on one photo, as one JSON-ready row."""
     from ipm.refine.fit import fit
 
     res = fit(photo, neural, renderer, options, sigma=sigma, ply_counts=ply_counts,
-              readings=readings)
+              readings=readings, detail=detail)
     return {"image": str(record.image), "neural": res.neural.to_dict(),
             "refined": res.refined.to_dict(), "loss_neural": res.loss_neural,
             "loss_refined": res.loss_refined, "improved": bool(res.improved),
@@ -96,13 +96,15 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
             prep: PhotoPrep = PhotoPrep(),
             progress: Callable[[int, int], None] | None = None,
             ply_counts_of: Callable[[Photo], Sequence[int]] | None = None,
-            readings=None) -> list[dict]:
+            readings=None, detail_of: Callable[[Photo], tuple | None] | None = None
+            ) -> list[dict]:
     """Fit every photo (all of one capture setup), resuming from the rows already in the
     JSON-lines file ``path``.
 
     ``neural_of(i, photo)`` gives the nets' parameters of photo ``i``, ``ply_counts_of``
     the nets' likely ply counts for the search to try (default: the nets' one), ``readings``
-    the nets' readings for the loss (:func:`ipm.refine.fit.fit`).  A row is appended
+    the nets' readings for the loss and ``detail_of`` the detail nets' for a photo
+    (:func:`ipm.refine.fit.fit`).  A row is appended
     (and flushed) as each fit ends; a photo that cannot be read or used gets a row with its
     ``error`` instead, and the others go on.  A line torn by a kill, and any row that does
     not belong to the photo at its place, is dropped and that photo fitted again."""
@@ -132,7 +134,8 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
             else:
                 renderer = renderer or Renderer(options=setup_options(photo.setup))
                 row = fit_row(photos[i], photo, neural, renderer, options, sigma,
-                              ply_counts_of(photo) if ply_counts_of else (), readings)
+                              ply_counts_of(photo) if ply_counts_of else (), readings,
+                              detail_of(photo) if detail_of else None)
             f.write(json.dumps(row) + "\n")
             f.flush()
             done.append(row)
@@ -251,7 +254,8 @@ def compare(photos: Sequence[Record], out: Path, ensemble, options, prior: bool 
     every = fit_all(out / FITS, photos, lambda i, photo: ensemble.predict(photo), options,
         ensemble.sigma(photos[0].pixel_size_mm) if prior and photos else None, prep,
         progress, (lambda photo: ensemble.ply_counts(photo, most=options.ply_counts))
-        if options.ply_counts > 1 else None, ensemble.readings)
+        if options.ply_counts > 1 else None, ensemble.readings,
+        lambda photo: ensemble.detail_readings(photo.pixel_size_mm))
     fitted = [i for i, r in enumerate(every) if "error" not in r]
     rows, truth, photos = ([seq[i] for i in fitted] for seq in (every, truth, photos))
     s = summary(rows, truth)

@@ -20,7 +20,7 @@ from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
 from ipm.photo import Photo, linear_to_srgb, srgb_to_linear
-from ipm.refine.objective import Readings, RenderObjective, centre_crop, to_tensor
+from ipm.refine.objective import Detail, Readings, RenderObjective, centre_crop, to_tensor
 from ipm.refine.search import (
     DEFAULT_LEARNED,
     DEFAULT_PLY_COUNTS,
@@ -48,7 +48,9 @@ class FitOptions:
     ply-stripe period the loss sees is ``alpha_ply / n``, so a wrong ``n`` makes the right
     period a wrong ``alpha_ply``).  display_scale, display_spp: the renders written for the
     user.  learned: the weight of the nets' readings in the loss (``readings`` of
-    :func:`fit`; 0: the hand-made statistics alone)."""
+    :func:`fit`; 0: the hand-made statistics alone).  detail: the weight of the detail nets'
+    readings of a window at their pitch, rendered per evaluation besides the search's view
+    (``detail`` of :func:`fit`, :class:`ipm.refine.objective.Detail`; 0: none)."""
 
     scale: float = 0.2
     spp: int = 4
@@ -58,6 +60,7 @@ class FitOptions:
     display_scale: float = 0.5
     display_spp: int = 16
     learned: float = DEFAULT_LEARNED
+    detail: float = 0.0
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.scale <= 1 or not 0.05 <= self.display_scale <= 1:
@@ -65,9 +68,9 @@ class FitOptions:
                             f"{self.display_scale}")
         if min(self.spp, self.display_spp, self.seeds_per_eval, self.ply_counts) < 1:
             raise UserError("spp, seeds_per_eval and ply_counts must be >= 1")
-        if not 0 <= self.learned < 1e6:
-            raise UserError(f"the weight of the nets' readings must be >= 0, got "
-                            f"{self.learned}")
+        if not (0 <= self.learned < 1e6 and 0 <= self.detail < 1e6):
+            raise UserError(f"the weights of the nets' readings must be >= 0, got "
+                            f"{self.learned}, {self.detail}")
 
 
 def nets_interval(name: str, value: float, sigma: float) -> tuple[float, float]:
@@ -184,14 +187,17 @@ def match_colour(objective: RenderObjective, params: YarnParams, photo: np.ndarr
 def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOptions(),
         refine: bool = True, on_eval: Callable[[int, float, float], None] | None = None,
         sigma: dict[str, float] | None = None, ply_counts: Sequence[int] = (),
-        readings: Readings | None = None) -> FitResult:
+        readings: Readings | None = None, detail: tuple[Readings, float] | None = None
+        ) -> FitResult:
     """Fit ``photo`` starting from the nets' parameters ``neural``; ``sigma``, the nets'
     error per parameter (:meth:`ipm.nets.ensemble.Ensemble.sigma`), makes the search a MAP
     estimate around them (:mod:`ipm.refine.search`).  ``ply_counts``: the nets' likely ply
     counts (:meth:`ipm.nets.ensemble.Ensemble.ply_counts`); the search runs from the nets'
     guess with each of the first ``options.ply_counts`` of them and keeps the lowest loss.
     ``readings``: the nets' readings (:meth:`ipm.nets.ensemble.Ensemble.readings`), added
-    to the loss at weight ``options.learned`` when that is above 0."""
+    to the loss at weight ``options.learned`` when that is above 0.  ``detail``: the detail
+    nets' readings and pitch (:meth:`ipm.nets.ensemble.Ensemble.detail_readings`; None for
+    a photo too coarse for them), compared on a window at weight ``options.detail``."""
     t0 = time.perf_counter()
     warnings = [w for w in (exposure_warning(photo.image),) if w]
     scale, frame = search_view(photo, options.scale)
@@ -199,10 +205,12 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
     seen = core_contrast(small) >= MIN_CORE_CONTRAST
     tilt = photo_tilt(small) if seen else 0.0
     learned = options.learned > 0 and readings is not None
+    window = (Detail.of_photo(photo, *detail, weight=options.detail, spp=options.spp)
+              if options.detail > 0 and detail is not None and seen else None)
     objective = RenderObjective(renderer, small, scale, options.spp,
                                 seeds_per_eval=options.seeds_per_eval, tilt_deg=tilt,
                                 readings=readings if learned else None,
-                                readings_weight=options.learned, frame=frame)
+                                readings_weight=options.learned, frame=frame, detail=window)
     if not seen:
         warnings.append("no yarn found in the photo (its core does not stand out from the "
                         "background); the search is skipped and the neural result kept")

@@ -36,6 +36,11 @@ DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum":
 Readings = Callable[[np.ndarray, float], dict[str, torch.Tensor]]
 
 
+#: (width, height) px of a :class:`Detail` window: the detail nets' training windows
+#: (``scripts/make_nets.sh``).
+DETAIL_WINDOW = (320, 320)
+
+
 @dataclass(frozen=True)
 class Detail:
     """A second view every evaluation renders: a small window at the detail nets' pitch
@@ -51,6 +56,17 @@ class Detail:
     readings: Readings
     weight: float = 1.0
     spp: int = 4
+
+    @classmethod
+    def of_photo(cls, photo, readings: Readings, pitch_mm: float, weight: float = 1.0,
+                 spp: int = 4) -> Detail:
+        """The :data:`DETAIL_WINDOW` at the middle of ``photo`` (an :class:`ipm.photo.Photo`),
+        resampled to ``pitch_mm``, the detail nets' pitch."""
+        frame = Frame(*DETAIL_WINDOW, pitch_mm)
+        image = photo.at_pitch(PIXEL_SIZE_MM / pitch_mm)
+        window = centre_crop(image, min(frame.height, image.shape[0]),
+                             min(frame.width, image.shape[1]))
+        return cls(window, frame, readings, weight, spp)
 
 
 def centre_crop(img: np.ndarray, h: int, w: int) -> np.ndarray:

@@ -17,7 +17,13 @@ import torch
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb
-from ipm.refine.stats import GROUPS, group_distances, stat_distance, yarn_statistics
+from ipm.refine.stats import (
+    GROUPS,
+    group_distances,
+    stat_distance,
+    yarn_centre,
+    yarn_statistics,
+)
 from ipm.render.photometric import Photometric
 from ipm.render.scene import Frame
 
@@ -60,13 +66,17 @@ class Detail:
     @classmethod
     def of_photo(cls, photo, readings: Readings, pitch_mm: float, weight: float = 1.0,
                  spp: int = 4) -> Detail:
-        """The :data:`DETAIL_WINDOW` at the middle of ``photo`` (an :class:`ipm.photo.Photo`),
-        resampled to ``pitch_mm``, the detail nets' pitch."""
+        """The :data:`DETAIL_WINDOW` of ``photo`` (an :class:`ipm.photo.Photo`) resampled to
+        ``pitch_mm``, the detail nets' pitch: in the middle along the yarn, and centred on
+        its core across it (:func:`ipm.refine.stats.yarn_centre`), as the renders' window
+        is on theirs."""
         frame = Frame(*DETAIL_WINDOW, pitch_mm)
         image = photo.at_pitch(PIXEL_SIZE_MM / pitch_mm)
-        window = centre_crop(image, min(frame.height, image.shape[0]),
-                             min(frame.width, image.shape[1]))
-        return cls(window, frame, readings, weight, spp)
+        h, w = min(frame.height, image.shape[0]), min(frame.width, image.shape[1])
+        _, centre = yarn_centre(to_tensor(image).mean(dim=1, keepdim=True))
+        top = int(np.clip(round(float(centre[0])) - h // 2, 0, image.shape[0] - h))
+        left = (image.shape[1] - w) // 2
+        return cls(image[top:top + h, left:left + w], frame, readings, weight, spp)
 
 
 def centre_crop(img: np.ndarray, h: int, w: int) -> np.ndarray:

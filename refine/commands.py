@@ -27,9 +27,10 @@ _LEARNED_HELP = ("weight of the nets' readings in the loss: renders the nets rea
 
 _DETAIL_HELP = ("weight of the detail nets' readings (alpha, m) of a window rendered at "
                 "their pitch each evaluation, for photos as fine as they need (0: none)")
-_PARAMS_HELP = ("continuous parameters to search, comma-separated (alpha_ply,R_ply); "
-                "stages separated by ';' (alpha_ply;R_ply,r_x: those from alpha_ply's best); "
-                "the others keep the nets' values")
+_PARAMS_HELP = ("parameters to search (any but the ply count n; m is rounded), "
+                "comma-separated (alpha_ply,R_ply); stages separated by ';' "
+                "(alpha_ply;R_ply,r_x: those from alpha_ply's best); the others keep the "
+                "nets' values")
 
 
 def fit(

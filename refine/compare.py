@@ -27,9 +27,10 @@ from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
 from ipm.photo import Photo
 from ipm.refine.search import LEVEL
 
-#: The continuous raw-yarn parameters the reports compare, neural vs refined (the search
-#: refines those of :class:`ipm.refine.search.SearchOptions`; the others keep the nets').
-REFINED = tuple(k for k in RAW_CONTINUOUS if k != "m")
+#: The raw-yarn parameters the nets regress, which the reports compare neural vs refined (the
+#: search refines those of :class:`ipm.refine.search.SearchOptions`; the others keep the
+#: nets').
+REFINED = RAW_CONTINUOUS
 FITS = "fits.jsonl"
 
 

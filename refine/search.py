@@ -49,17 +49,23 @@ DEFAULT_PLY_COUNTS = 1
 #: The weight of the nets' readings in a fit's loss (:class:`ipm.refine.fit.FitOptions`).
 DEFAULT_LEARNED = 0.0
 
+#: The parameters a search can move: all but the ply count ``n``, which a fit chooses among the
+#: nets' most likely counts (:func:`search_ply_counts`).  An integer parameter (``m``, ``g``)
+#: is searched on the real line and rounded before each render, so the loss is a staircase
+#: in it that a global search (DIRECT-L) handles.
+SEARCHABLE = tuple(k for k in PAPER_INTERVALS if k != "n")
+
 ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_L")
 
 
 @dataclass(frozen=True)
 class SearchOptions:
-    """params: continuous parameters to search.  By default only alpha_ply, with DIRECT-L,
-    a global search of the box: the autocorrelation has side minima in alpha_ply that trap
-    a local search such as BOBYQA.  The loss also has its minimum at the truth for R_ply and
-    r_x (docs/identifiability.md), but a second stage searching them from alpha_ply's best
-    moved them further from the truth than the nets' values (docs/compare-staged), and the
-    loss does not see alpha, so they keep the nets' values.
+    """params: parameters to search (:data:`SEARCHABLE`).  By default only alpha_ply, with
+    DIRECT-L, a global search of the box: the autocorrelation has side minima in alpha_ply
+    that trap a local search such as BOBYQA.  The loss also has its minimum at the truth for
+    R_ply and r_x (docs/identifiability.md), but a second stage searching them from
+    alpha_ply's best moved them further from the truth than the nets' values
+    (docs/compare-staged), and the loss does not see alpha, so they keep the nets' values.
 
     algorithm: an NLopt derivative-free algorithm.  budget: objective evaluations of the
     search (re-scoring comes on top).  time_s: wall-time bound of the search.  width:
@@ -87,11 +93,10 @@ class SearchOptions:
 
     def __post_init__(self) -> None:
         names = [p for stage in self.stages for p in stage]
-        bad = [p for p in names if p not in PAPER_INTERVALS or PAPER_INTERVALS[p].integer]
+        bad = [p for p in names if p not in SEARCHABLE]
         if bad or not all(self.stages):
-            allowed = [k for k, iv in PAPER_INTERVALS.items() if not iv.integer]
-            raise UserError(f"cannot search {bad or 'no parameters'}: choose among the "
-                            f"continuous parameters {', '.join(allowed)}")
+            raise UserError(f"cannot search {bad or 'no parameters'}: choose among "
+                            f"{', '.join(SEARCHABLE)} (the ply count takes --ply-counts)")
         if self.algorithm not in ALGORITHMS:
             raise UserError(f"unknown algorithm {self.algorithm!r}; choose one of "
                             f"{', '.join(ALGORITHMS)}")
@@ -203,8 +208,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
 
     def to_params(u: np.ndarray) -> YarnParams:
         vals = lo + np.clip(u, 0, 1) * span
-        return start.replace(**{k: float(np.clip(v, PAPER_INTERVALS[k].lo, PAPER_INTERVALS[k].hi))
-                                for k, v in zip(names, vals, strict=True)})
+        return start.replace(**{k: within(k, v) for k, v in zip(names, vals, strict=True)})
 
     def f(u: np.ndarray, grad: np.ndarray) -> float:
         p = to_params(u)
@@ -241,6 +245,13 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
                         seconds=time.perf_counter() - t0,
                         intervals=profile_intervals(names, [(z, p) for *_, p, z in
                                                             seen.values()], best))
+
+
+def within(name: str, value: float) -> float | int:
+    """``value`` clipped to parameter ``name``'s interval, rounded if it is an integer."""
+    iv = PAPER_INTERVALS[name]
+    v = float(np.clip(value, iv.lo, iv.hi))
+    return int(round(v)) if iv.integer else v
 
 
 def profile_intervals(names: tuple[str, ...], evaluated: list[tuple[float, YarnParams]],

@@ -53,6 +53,20 @@ def test_stays_in_the_box_and_the_prior():
     assert np.all(vals >= lo - 1e-9) and np.all(vals <= hi + 1e-9)
 
 
+def test_an_integer_parameter_is_searched_at_whole_values():
+    """The fibers per ply ``m``: every render gets a whole ``m``, and a staircase loss with
+    its lowest step at the truth is found from a start 15 fibers off."""
+    seen = []
+
+    def loss(p, seed):
+        seen.append(p.m)
+        return abs(p.m - TRUTH.m) + 1e-4 * (seed % 3)
+
+    res = search(loss, TRUTH.replace(m=TRUTH.m + 15), SearchOptions(params=("m",), budget=30))
+    assert all(isinstance(m, int) for m in seen) and len(set(seen)) > 3
+    assert res.improved and res.best.m == TRUTH.m
+
+
 def test_keeps_the_start_when_nothing_is_better():
     res = search(quadratic, TRUTH, SearchOptions(params=NAMES, budget=30))
     assert not res.improved and res.best is TRUTH

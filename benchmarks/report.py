@@ -410,8 +410,8 @@ def markdown(results: dict, figures: dict[str, str], command: str) -> str:
               + ("ours are held-out MAE of the shipped models (ResNet18 at a quarter of its "
                  "width on 300x146 px crops at 0.04 mm per pixel, for `alpha` and `m` on "
                  "photos of 0.0125 mm per pixel or finer detail nets on 256x256 px crops at "
-                 "0.01 mm; 8-18 epochs on 2000 images on two CPU cores; "
-                 "`nets/models/README.md`)" if results["settings"]["models"]
+                 "0.01 mm; 8-28 epochs on 2000 images, the detail nets on 4000, on two CPU "
+                 "cores; `nets/models/README.md`)" if results["settings"]["models"]
                  == "shipped" else f"ours are held-out MAE of the models in "
                  f"`{results['settings']['models']}`")
               + "".join(f"; `{n}`: its best epoch on the validation set, {e}"

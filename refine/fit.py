@@ -207,6 +207,10 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
     learned = options.learned > 0 and readings is not None
     window = (Detail.of_photo(photo, *detail, weight=options.detail, spp=options.spp)
               if options.detail > 0 and detail is not None and seen else None)
+    if options.detail > 0 and detail is None:
+        warnings.append(f"no detail nets read photos of {photo.pixel_size_mm:g} mm per pixel "
+                        "(the shipped ones need 0.0125 mm or finer); the loss has no detail "
+                        "window")
     objective = RenderObjective(renderer, small, scale, options.spp,
                                 seeds_per_eval=options.seeds_per_eval, tilt_deg=tilt,
                                 readings=readings if learned else None,

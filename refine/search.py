@@ -65,7 +65,9 @@ class SearchOptions:
     that trap a local search such as BOBYQA.  The loss also has its minimum at the truth for
     R_ply and r_x (docs/identifiability.md), but a second stage searching them from
     alpha_ply's best moved them further from the truth than the nets' values
-    (docs/compare-staged), and the loss does not see alpha, so they keep the nets' values.
+    (docs/compare-staged), and the image statistics do not see alpha, so they keep the nets'
+    values (the detail nets' readings do, ``--detail``, but a search with them is not yet
+    measured to help: benchmarks/README.md, "Neural-only vs refined").
 
     algorithm: an NLopt derivative-free algorithm.  budget: objective evaluations of the
     search (re-scoring comes on top).  time_s: wall-time bound of the search.  width:

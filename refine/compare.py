@@ -172,7 +172,7 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None]) -> dict:
 def csv_text(rows: list[dict], truth: Sequence[YarnParams | None]) -> str:
     """One row per photo: losses, whether the search improved, time, and per refined
     parameter the neural, refined (and true) values."""
-    keys = ("n", "m", *REFINED)
+    keys = ("n", *REFINED)
     labelled = any(t is not None for t in truth)
     head = ["image", "loss_neural", "loss_refined", "improved", "seconds", "tilt_deg"]
     for k in keys:

@@ -35,6 +35,8 @@ def ensemble():
 def test_labelled_dataset_report(dataset, ensemble, tmp_path):
     s = compare(photos_in(dataset, 0.01), tmp_path, ensemble, OPTIONS, figure_count=1)
     assert s["count"] == 2 and set(s["params"]) == set(REFINED)
+    header = (tmp_path / "results.csv").read_text().splitlines()[0].split(",")
+    assert len(set(header)) == len(header), header  # each parameter's columns once
     rows = list(csv.DictReader((tmp_path / "results.csv").open()))
     assert len(rows) == 2 and all(r["true_alpha_ply"] for r in rows)
     for r in rows:

@@ -31,8 +31,7 @@ import numpy as np
 
 from ipm.benchmarks.machine import markdown_header
 from ipm.io import write_text
-from ipm.params import PAPER_INTERVALS
-from ipm.refine.compare import REFINED
+from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS
 
 STEPS = (-0.1, -0.075, -0.05, -0.025, 0.0, 0.025, 0.05, 0.075, 0.1)
 SPREAD_SEEDS = (0, 1, 2, 3, 4)
@@ -151,7 +150,7 @@ def main() -> None:
     ap.add_argument("--data", required=True, help="held-out set made with ipm generate")
     ap.add_argument("--out", default=None)
     ap.add_argument("--yarns", type=int, default=10)
-    ap.add_argument("--params", default=",".join(REFINED))
+    ap.add_argument("--params", default=",".join(RAW_CONTINUOUS))
     ap.add_argument("--scale", type=float, default=0.2)
     ap.add_argument("--spp", type=int, default=4)
     ap.add_argument("--seeds-per-eval", type=int, default=2)

@@ -11,7 +11,6 @@ import numpy as np
 
 from ipm.benchmarks.report import ENSEMBLE, RAW, span
 from ipm.params import PAPER_INTERVALS, YarnParams
-from ipm.refine.compare import REFINED
 
 NEURAL, REFINED_C = "#1f77b4", "#ff7f0e"
 
@@ -50,7 +49,7 @@ def predicted_vs_true(path: Path, preds: list[dict], truth: list[YarnParams],
     for ax, k in zip(axes, RAW, strict=False):
         t = np.array([getattr(p, k) for p in truth])
         ax.scatter(t, [p[k] for p in preds], s=8, c=NEURAL, label="neural", alpha=0.7)
-        if k in REFINED and refined:
+        if refined:
             ax.scatter(t[: len(refined)], [r["refined"][k] for r in refined], s=14,
                        c=REFINED_C, marker="^", label="refined")
         iv = PAPER_INTERVALS[k]
@@ -69,7 +68,7 @@ def error_vs_value(path: Path, preds: list[dict], truth: list[YarnParams],
         t = np.array([getattr(p, k) for p in truth])
         ax.scatter(t, 100 * np.abs([p[k] for p in preds] - t) / span(k), s=8, c=NEURAL,
                    label="neural", alpha=0.7)
-        if k in REFINED and refined:
+        if refined:
             ax.scatter(t[: len(refined)],
                        100 * np.abs([r["refined"][k] for r in refined] - t[: len(refined)])
                        / span(k), s=14, c=REFINED_C, marker="^", label="refined")
@@ -117,7 +116,7 @@ def best_and_worst(path: Path, refined: list[dict], truth: list[YarnParams], rec
 
     def err(i: int) -> float:
         return float(np.mean([abs(refined[i]["refined"][k] - getattr(truth[i], k)) / span(k)
-                              for k in REFINED]))
+                              for k in RAW]))
 
     order = sorted(range(len(refined)), key=err)
     picks = list(dict.fromkeys(order[:count] + order[-count:]))

@@ -27,10 +27,6 @@ from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
 from ipm.photo import Photo
 from ipm.refine.search import LEVEL
 
-#: The raw-yarn parameters the nets regress, which the reports compare neural vs refined (the
-#: search refines those of :class:`ipm.refine.search.SearchOptions`; the others keep the
-#: nets').
-REFINED = RAW_CONTINUOUS
 FITS = "fits.jsonl"
 
 
@@ -154,7 +150,7 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None]) -> dict:
     labelled = [(r, t) for r, t in zip(rows, truth, strict=False) if t is not None]
     if not labelled:
         return out
-    for k in REFINED:
+    for k in RAW_CONTINUOUS:
         a = float(np.mean([abs(r["neural"][k] - getattr(t, k)) for r, t in labelled]))
         b = float(np.mean([abs(r["refined"][k] - getattr(t, k)) for r, t in labelled]))
         out["params"][k] = {"neural": a, "refined": b,
@@ -172,7 +168,7 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None]) -> dict:
 def csv_text(rows: list[dict], truth: Sequence[YarnParams | None]) -> str:
     """One row per photo: losses, whether the search improved, time, and per refined
     parameter the neural, refined (and true) values."""
-    keys = ("n", *REFINED)
+    keys = ("n", *RAW_CONTINUOUS)
     labelled = any(t is not None for t in truth)
     head = ["image", "loss_neural", "loss_refined", "improved", "seconds", "tilt_deg"]
     for k in keys:

@@ -9,7 +9,8 @@ import sys
 import pytest
 
 from ipm.errors import UserError
-from ipm.refine.compare import FITS, REFINED, PhotoPrep, compare, photos_in
+from ipm.params import RAW_CONTINUOUS
+from ipm.refine.compare import FITS, PhotoPrep, compare, photos_in
 from ipm.refine.fit import FitOptions
 from ipm.refine.search import SearchOptions
 
@@ -34,7 +35,7 @@ def ensemble():
 
 def test_labelled_dataset_report(dataset, ensemble, tmp_path):
     s = compare(photos_in(dataset, 0.01), tmp_path, ensemble, OPTIONS, figure_count=1)
-    assert s["count"] == 2 and set(s["params"]) == set(REFINED)
+    assert s["count"] == 2 and set(s["params"]) == set(RAW_CONTINUOUS)
     header = (tmp_path / "results.csv").read_text().splitlines()[0].split(",")
     assert len(set(header)) == len(header), header  # each parameter's columns once
     rows = list(csv.DictReader((tmp_path / "results.csv").open()))
@@ -42,7 +43,7 @@ def test_labelled_dataset_report(dataset, ensemble, tmp_path):
     for r in rows:
         assert float(r["loss_refined"]) <= float(r["loss_neural"])
     index = (tmp_path / "index.md").read_text()
-    assert all(f"| {k} |" in index for k in REFINED) and "compare.png" in index
+    assert all(f"| {k} |" in index for k in RAW_CONTINUOUS) and "compare.png" in index
     assert (tmp_path / "compare.png").stat().st_size > 0
 
     # a rerun resumes: the fits file is kept as it is, nothing is fitted again

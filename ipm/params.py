@@ -101,7 +101,13 @@ def from_unit(name: str, x: float) -> float | int:
     """Inverse of :func:`to_unit`: ``x`` clipped to [0, 1], integers rounded."""
     iv = PAPER_INTERVALS[name]
     x = min(max(float(x), 0.0), 1.0)
-    val = min(max(iv.lo + x * iv.width, iv.lo), iv.hi)  # lo + 1.0 * width can round past hi
+    return clipped(name, iv.lo + x * iv.width)  # lo + 1.0 * width can round past hi
+
+
+def clipped(name: str, value: float) -> float | int:
+    """A paper parameter's ``value`` clipped to its interval, integers rounded."""
+    iv = PAPER_INTERVALS[name]
+    val = min(max(float(value), iv.lo), iv.hi)
     return int(round(val)) if iv.integer else val
 
 

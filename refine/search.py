@@ -30,7 +30,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from ipm.errors import UserError
-from ipm.params import PAPER_INTERVALS, YarnParams
+from ipm.params import PAPER_INTERVALS, YarnParams, clipped
 from ipm.prior import GAMMA_DEG
 
 #: An objective: the loss of the yarn ``params`` rendered with fiber seed ``seed``.
@@ -210,7 +210,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
 
     def to_params(u: np.ndarray) -> YarnParams:
         vals = lo + np.clip(u, 0, 1) * span
-        return start.replace(**{k: within(k, v) for k, v in zip(names, vals, strict=True)})
+        return start.replace(**{k: clipped(k, v) for k, v in zip(names, vals, strict=True)})
 
     def f(u: np.ndarray, grad: np.ndarray) -> float:
         p = to_params(u)
@@ -247,13 +247,6 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
                         seconds=time.perf_counter() - t0,
                         intervals=profile_intervals(names, [(z, p) for *_, p, z in
                                                             seen.values()], best))
-
-
-def within(name: str, value: float) -> float | int:
-    """``value`` clipped to parameter ``name``'s interval, rounded if it is an integer."""
-    iv = PAPER_INTERVALS[name]
-    v = float(np.clip(value, iv.lo, iv.hi))
-    return int(round(v)) if iv.integer else v
 
 
 def profile_intervals(names: tuple[str, ...], evaluated: list[tuple[float, YarnParams]],

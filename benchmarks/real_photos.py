@@ -85,6 +85,8 @@ def main() -> None:
     ap.add_argument("--budget", type=int, default=None, help="evaluations per search")
     ap.add_argument("--params", default=None, help="the searched parameters and stages, as "
                     "`ipm fit --params` (default: its default)")
+    ap.add_argument("--ply-counts", type=int, default=1, help="search with each of the nets' "
+                    "most likely ply counts, as `ipm fit --ply-counts`")
     ap.add_argument("--no-prior", action="store_true", help="the image loss alone, as `ipm "
                     "fit --no-prior`: for yarns outside the nets' training range")
     args = ap.parse_args()
@@ -105,11 +107,13 @@ def main() -> None:
     stages = {} if args.params is None else search_stages_of(args.params)
     search = SearchOptions(**stages, **({} if args.budget is None else
                                         {"budget": args.budget}))
-    options = FitOptions(search=search)
+    options = FitOptions(search=search, ply_counts=args.ply_counts)
     args.out.mkdir(parents=True, exist_ok=True)
     rows = fit_all(args.out / "fits.jsonl", records, lambda i, photo: ensemble.predict(photo),
                    options, None if args.no_prior else ensemble.sigma(args.pixel_size),
-                   progress=lambda done, total: print(f"fits {done}/{total}", flush=True))
+                   progress=lambda done, total: print(f"fits {done}/{total}", flush=True),
+                   ply_counts_of=(lambda photo: ensemble.ply_counts(photo, most=args.ply_counts))
+                   if args.ply_counts > 1 else None)
     plies = readme_ply_counts(args.photos)
     renderer = Renderer(options=setup_options("backlit"))
     (args.out / "renders").mkdir(exist_ok=True)

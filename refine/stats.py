@@ -4,8 +4,9 @@ A render with the right parameters and another fiber seed should score as well a
 itself, so the loss compares statistics, not pixels.  The yarn runs horizontally; after
 centring it vertically, the groups (:data:`GROUPS`) are:
 
-* ``core``: per row, the median deviation from the background along the axis (the median
-  ignores sparse flyaways: the core's occupancy, thickness ``2 (R_ply + r)``);
+* ``core``: per row, the median deviation from the background along the axis, in units of
+  the core's contrast (the median ignores sparse flyaways: the core's occupancy, thickness
+  ``2 (R_ply + r)``; the units leave out the capture's contrast);
 * ``flyaways``: per row, the mean minus that median: what the flyaways add at each distance
   from the axis;
 * ``orientation``: per horizontal strip, magnitude-weighted double-angle moments of the
@@ -77,10 +78,24 @@ def centre_rows(image: Tensor, centre: Tensor) -> Tensor:
     return kornia.geometry.transform.translate(image, shift, padding_mode="border")
 
 
+#: The smallest core contrast the deviation is divided by: an empty image stays near 0.
+CONTRAST_FLOOR = 0.02
+
+
 def _centred_deviation(gray: Tensor) -> Tensor:
-    """(B, 1, H, W) signed deviation from the background, the core centred vertically."""
+    """(B, 1, H, W) signed deviation from the background, the core centred vertically, in
+    units of the core's contrast (the largest per-row median |deviation|).
+
+    Why in those units: the core's contrast is the capture's (lamps, exposure, background
+    level, the fibers' translucency), not the yarn's shape.  A real backlit photo's core is
+    0.35 below a grey background where ipm's render is 0.65 below a bright one; in absolute
+    units the closest core profile to the photo's was a thinner one, and fitted cores came
+    out 10-22% thinner than the photos' (docs/real-photos-thickness).  The autocorrelation,
+    the stripes and the spectrum were already invariant to the contrast."""
     bg, centre = yarn_centre(gray)
-    return centre_rows(gray - bg.view(-1, 1, 1, 1), centre)
+    dev = centre_rows(gray - bg.view(-1, 1, 1, 1), centre)
+    contrast = dev[:, 0].median(dim=-1).values.abs().amax(dim=-1)
+    return dev / contrast.clamp_min(CONTRAST_FLOOR).view(-1, 1, 1, 1)
 
 
 def _strip_mean(x: Tensor, strips: int) -> Tensor:
@@ -135,7 +150,9 @@ def _level_stats(dev: Tensor, strips: int, bands: int) -> dict[str, Tensor]:
     bins = _spectrum_bins(band.shape[1], w, bands, 4, d.device, d.dtype)
     logp = torch.log(power.flatten(1) @ bins.T + 1e-10)
     spectrum = 0.25 * (logp - logp.mean(dim=-1, keepdim=True))
-    return {"core": 4 * median, "flyaways": 8 * fly, "orientation": orientation,
+    # the factors keep the groups' balance of the loss as it was in absolute units for a
+    # core of contrast 0.5
+    return {"core": 2 * median, "flyaways": 4 * fly, "orientation": orientation,
             "spectrum": spectrum, "period": _axial_autocorrelation(band),
             "stripes": _axial_spectrum_cdf(band)}
 

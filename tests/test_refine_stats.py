@@ -6,14 +6,15 @@ import torch
 from ipm.refine.stats import GROUPS, YarnStatLoss, yarn_stat_loss, yarn_statistics
 
 
-def stripes(angle: float, period: float = 12.0, h: int = 96, w: int = 320, shift: int = 0):
+def stripes(angle: float, period: float = 12.0, h: int = 96, w: int = 320, shift: int = 0,
+            background: float = 0.8, contrast: float = 0.4, half_width: float = 96 / 6):
     """A dark band across the middle filled with oblique stripes: a cartoon yarn."""
     y, x = torch.meshgrid(torch.arange(h, dtype=torch.float64),
                           torch.arange(w, dtype=torch.float64), indexing="ij")
-    core = ((y - h / 2 - shift).abs() < h / 6).double()
+    core = ((y - h / 2 - shift).abs() < half_width).double()
     phase = 2 * torch.pi * (x * torch.cos(torch.tensor(angle)) + y * torch.sin(
         torch.tensor(angle))) / period
-    img = 0.8 - core * (0.4 + 0.2 * torch.sin(phase))
+    img = background - core * contrast * (1 + 0.5 * torch.sin(phase))
     return img[None, None].expand(1, 3, h, w).contiguous()
 
 
@@ -50,6 +51,17 @@ def test_sees_twist_angle_direction_and_period():
     mirrored = yarn_stat_loss(a, stripes(-0.6))
     assert mirrored > 50 * yarn_stat_loss(a, stripes(0.6, shift=7))
     assert yarn_stat_loss(a, stripes(0.6, period=14)) < yarn_stat_loss(a, stripes(0.6, period=24))
+
+
+def test_core_and_flyaways_do_not_depend_on_the_capture_contrast():
+    """A grey backlit photo's core (0.35 below a 0.6 background) against a render's (0.6
+    below 0.8): the same yarn reads the same; a core 20% thinner does not."""
+    photo = stripes(0.6, background=0.6, contrast=0.23)
+    render = stripes(0.6, background=0.8, contrast=0.4)
+    thinner = stripes(0.6, background=0.8, contrast=0.4, half_width=0.8 * 96 / 6)
+    for group in ("core", "flyaways", "period", "stripes"):
+        assert group_distance(photo, render, group) < 1e-6, group
+    assert group_distance(photo, thinner, "core") > 0.01
 
 
 def test_sees_core_thickness():

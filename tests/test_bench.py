@@ -161,3 +161,26 @@ def test_cycles_verdict_matches_each_yarn_to_its_own_cycles_noise():
     # every SNR is 1: ipm matches it at the grid's 4 spp already, a lower bound on the speed-up
     assert "equal detail SNR: median at least **100.0x** over 2 of 2 yarns" in text
     assert "0 (100 fibers): ≥100.0x, 1 (500 fibers): ≥100.0x" in text
+
+
+def test_make_nets_time_recipe_is_the_scripts():
+    """The training-time benchmark projects scripts/make_nets.sh's image counts and epochs:
+    its numbers must be the script's."""
+    import re
+    from pathlib import Path
+
+    from ipm.benchmarks.make_nets_time import RECIPE, RECIPE_DATA, TRAIN_IMAGES
+
+    script = (Path(__file__).parents[1] / "scripts" / "make_nets.sh").read_text()
+    counts = [int(c) for c in re.findall(r"ipm generate .*?--count (\d+)", script)]
+    frontlit = sum(d.images.get("frontlit", 0) for d in RECIPE_DATA.values())
+    backlit = sum(d.images.get("backlit", 0) for d in RECIPE_DATA.values())
+    assert frontlit == sum(counts) and backlit == sum(counts[:3])
+    assert TRAIN_IMAGES == {"frame": counts[0], "detail window": counts[3],
+                            "backlit frame, varied look": counts[0]}
+    trained = {(tuple(n.split(",")), int(e)) for n, e in
+               re.findall(r"--nets (\S+) --epochs (\d+)", script)}
+    assert {(t.nets, t.epochs) for t in RECIPE["frontlit"]} == trained
+    assert {(t.nets, t.epochs) for t in RECIPE["backlit"]} == {
+        (t.nets, t.epochs) for t in RECIPE["frontlit"] if t.data == "frame"} - {
+        (("alpha_ply",), 24)}

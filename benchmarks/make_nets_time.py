@@ -1,0 +1,176 @@
+"""Dataset and training time of the shipped nets on this machine: the recipe of
+``scripts/make_nets.sh`` (its image counts and epochs, :data:`RECIPE`) times rates measured
+here with the same commands on small sets.
+
+    python -m ipm.benchmarks.make_nets_time [--images 48] \\
+        [--out benchmarks/results/make_nets_time.md]
+
+Method.  Per kind of dataset, ``ipm generate`` renders ``--images`` samples with the
+recipe's options, and a fourth as many: the difference of the two commands' wall times
+(all cores) over the difference in images is the time per image without the start-up; per
+kind of net, ``ipm train`` trains it one epoch on them, one thread as the recipe
+runs it, and its ``model.json`` gives the epoch's seconds per training image (validation
+and start-up left out: a forward pass over 200 images per epoch, a few per cent).  The
+projection multiplies these rates by the recipe's images and epochs; training runs as two
+one-thread processes side by side, so its wall time is the longer of the two lanes.  Why
+projected, not timed: the whole recipe takes hours, and a shared machine makes one full run
+a poor measure of either.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ipm.benchmarks.machine import markdown_header, publish
+
+COMMAND = "python -m ipm.benchmarks.make_nets_time --out benchmarks/results/make_nets_time.md"
+
+
+@dataclass(frozen=True)
+class Data:
+    """A kind of dataset: ``ipm generate`` options, and how many images of it each setup's
+    recipe renders (train and val sets together; the test sets, at the default spp, are
+    kinds of their own)."""
+
+    options: tuple[str, ...]
+    images: dict[str, int]
+
+
+@dataclass(frozen=True)
+class Training:
+    """One ``ipm train`` of the recipe: nets trained one after the other in a process, on a
+    kind of dataset with extra options, in lane 1 or 2 (the two processes side by side)."""
+
+    nets: tuple[str, ...]
+    epochs: int
+    data: str
+    lane: int
+    options: tuple[str, ...] = ()
+
+
+DETAIL_TRAIN = ("--input-scale", "1", "--crop", "256", "256")
+#: scripts/make_nets.sh, as numbers (tests/test_bench.py checks them against the script).
+RECIPE_DATA = {
+    "frame": Data(("--spp", "4-24"), {"frontlit": 2000 + 200}),
+    "test frame": Data((), {"frontlit": 200}),
+    "detail window": Data(("--scale", "1", "--view", "320", "320", "--spp", "4-24"),
+                          {"frontlit": 4000 + 200}),
+    "whole frame at 0.01 mm": Data(("--scale", "1"), {"frontlit": 200}),
+    "backlit frame, varied look": Data(("--setup", "backlit", "--vary-look", "--spp", "4-24"),
+                                       {"backlit": 2000 + 200}),
+    "backlit test frame, varied look": Data(("--setup", "backlit", "--vary-look"),
+                                            {"backlit": 200}),
+}
+#: The training images of each dataset kind.
+TRAIN_IMAGES = {"frame": 2000, "detail window": 4000, "backlit frame, varied look": 2000}
+RECIPE = {
+    "frontlit": (
+        Training(("alpha", "m"), 18, "frame", 1),
+        Training(("n", "thickness"), 12, "frame", 1),
+        Training(("alpha_ply", "R_ply", "r_x", "r_y"), 12, "frame", 2),
+        Training(("flyaways",), 8, "frame", 2),
+        Training(("alpha",), 16, "detail window", 1, DETAIL_TRAIN),
+        Training(("alpha_ply",), 24, "frame", 1),
+        Training(("m",), 28, "detail window", 2, DETAIL_TRAIN),
+    ),
+    "backlit": (
+        Training(("alpha", "m"), 18, "backlit frame, varied look", 1, ("--look",)),
+        Training(("n", "thickness"), 12, "backlit frame, varied look", 1, ("--look",)),
+        Training(("alpha_ply", "R_ply", "r_x", "r_y"), 12, "backlit frame, varied look", 2,
+                 ("--look",)),
+        Training(("flyaways",), 8, "backlit frame, varied look", 2, ("--look",)),
+    ),
+}
+
+
+def run(args: list[str], threads: int | None = None) -> float:
+    """Wall seconds of a command; a failure stops the benchmark with its output."""
+    env = dict(os.environ, **({"OMP_NUM_THREADS": str(threads)} if threads else {}))
+    t0 = time.perf_counter()
+    done = subprocess.run(args, env=env, capture_output=True, text=True)
+    if done.returncode:
+        raise SystemExit(f"{' '.join(args)} failed:\n{done.stderr[-2000:]}")
+    return time.perf_counter() - t0
+
+
+def render_rates(folder: Path, images: int) -> dict[str, float]:
+    """Seconds per image of each dataset kind, start-up left out: the difference of the wall
+    times of ``images`` samples and of a fourth of them, over the difference in images.  The
+    samples are left in ``folder`` as a train and a val set of each kind."""
+    rates = {}
+    for kind, data in RECIPE_DATA.items():
+        out = folder / kind.replace(" ", "-")
+        out.mkdir(parents=True)
+        few = max(4, images // 4)
+        times = [run(["ipm", "generate", "--out", str(out / split), "--count", str(count),
+                      "--seed", str(seed), "--split", split, *data.options])
+                 for split, count, seed in (("train", images, 0), ("val", few, 1))]
+        rates[kind] = (times[0] - times[1]) / (images - few)
+    return rates
+
+
+def train_rate(folder: Path, kind: str, net: str, options: tuple[str, ...]) -> float:
+    """Seconds per training image and epoch of ``net`` on dataset kind ``kind``."""
+    data = folder / kind.replace(" ", "-")
+    out = folder / f"run-{kind.replace(' ', '-')}-{net}-{len(options)}"
+    setup = ("--setup", "backlit") if "backlit" in kind else ()
+    run(["ipm", "train", "--preset", "ensemble", "--nets", net, "--data", str(data / "train"),
+         "--val", str(data / "val"), "--epochs", "1", "--blur", "1.5", "--seed", "0",
+         "--lr", "1e-3", "--out", str(out), *setup, *options], threads=1)
+    info = json.loads((out / net / "model.json").read_text())
+    return info["seconds_per_epoch"] / info["train_images"]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--images", type=int, default=48, help="images rendered per dataset kind")
+    ap.add_argument("--out", default=None, help="markdown report to write")
+    args = ap.parse_args()
+
+    with tempfile.TemporaryDirectory(prefix="ipm-make-nets-") as tmp:
+        folder = Path(tmp)
+        render = render_rates(folder, args.images)
+        train = {(t.data, net, t.options): train_rate(folder, t.data, net, t.options)
+                 for trainings in RECIPE.values() for t in trainings for net in t.nets}
+
+    lines = [markdown_header("Dataset and training time of the shipped nets", COMMAND,
+                             "torch", "mitsuba"),
+             f"Rates measured on {args.images} images per kind (the recipe: "
+             "`scripts/make_nets.sh`; method: `benchmarks/make_nets_time.py`).", "",
+             "| dataset kind | s per image (2 cores) | recipe images | minutes |",
+             "|---|---|---|---|"]
+    for kind, data in RECIPE_DATA.items():
+        count = sum(data.images.values())
+        lines.append(f"| {kind} | {render[kind]:.2f} | {count} | "
+                     f"{render[kind] * count / 60:.0f} |")
+    lines += ["", "| setup | nets | epochs | dataset | lane | s per image-epoch (1 thread) | "
+              "minutes |", "|---|---|---|---|---|---|---|"]
+    totals = {}
+    for setup, trainings in RECIPE.items():
+        lanes = {1: 0.0, 2: 0.0}
+        for t in trainings:
+            rate = sum(train[(t.data, net, t.options)] for net in t.nets) / len(t.nets)
+            minutes = sum(train[(t.data, net, t.options)] for net in t.nets) * t.epochs * \
+                TRAIN_IMAGES[t.data] / 60
+            lanes[t.lane] += minutes
+            lines.append(f"| {setup} | {', '.join(t.nets)} | {t.epochs} | {t.data} | {t.lane} | "
+                         f"{rate:.3f} | {minutes:.0f} |")
+        data_min = sum(render[k] * d.images.get(setup, 0) for k, d in RECIPE_DATA.items()) / 60
+        totals[setup] = (data_min, lanes[1], lanes[2])
+    lines += ["", "| setup | datasets (min) | training, lane 1 / lane 2 (min) | "
+              "**whole recipe, wall (h)** |", "|---|---|---|---|"]
+    for setup, (data_min, one, two) in totals.items():
+        lines.append(f"| {setup} | {data_min:.0f} | {one:.0f} / {two:.0f} | "
+                     f"**{(data_min + max(one, two)) / 60:.1f}** |")
+    publish("\n".join(lines) + "\n", args.out)
+
+
+if __name__ == "__main__":
+    main()

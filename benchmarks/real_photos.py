@@ -85,6 +85,8 @@ def main() -> None:
     ap.add_argument("--budget", type=int, default=None, help="evaluations per search")
     ap.add_argument("--params", default=None, help="the searched parameters and stages, as "
                     "`ipm fit --params` (default: its default)")
+    ap.add_argument("--polish", type=int, default=0, help="evaluations of the local polish "
+                    "of each stage, as `ipm fit --polish`")
     ap.add_argument("--ply-counts", type=int, default=1, help="search with each of the nets' "
                     "most likely ply counts, as `ipm fit --ply-counts`")
     ap.add_argument("--no-prior", action="store_true", help="the image loss alone, as `ipm "
@@ -105,8 +107,8 @@ def main() -> None:
     records = [Record(f, args.pixel_size, setup="backlit") for f in files]
     ensemble = Ensemble.load(args.models, setup="backlit")
     stages = {} if args.params is None else search_stages_of(args.params)
-    search = SearchOptions(**stages, **({} if args.budget is None else
-                                        {"budget": args.budget}))
+    search = SearchOptions(**stages, polish=args.polish,
+                           **({} if args.budget is None else {"budget": args.budget}))
     options = FitOptions(search=search, ply_counts=args.ply_counts)
     args.out.mkdir(parents=True, exist_ok=True)
     rows = fit_all(args.out / "fits.jsonl", records, lambda i, photo: ensemble.predict(photo),

@@ -31,6 +31,8 @@ _PARAMS_HELP = ("parameters to search (any but the ply count n; m is rounded), "
                 "comma-separated (alpha_ply,R_ply); stages separated by ';' "
                 "(alpha_ply;R_ply,r_x: those from alpha_ply's best); the others keep the "
                 "nets' values")
+_POLISH_HELP = ("evaluations of a local search (BOBYQA) from each stage's best, beyond the "
+                "budget: a global search's budget only samples a coarse grid (0: none)")
 
 
 def fit(
@@ -61,6 +63,7 @@ def fit(
                                             "lowest loss (1: the nets' ply count only)")]
     = DEFAULT_PLY_COUNTS,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = _DEFAULT.algorithm,
+    polish: Annotated[int, typer.Option(min=0, help=_POLISH_HELP)] = _DEFAULT.polish,
     params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = ";".join(
         ",".join(stage) for stage in _DEFAULT.stages),
     prior: Annotated[bool, typer.Option("--prior/--no-prior", help="keep the search near the "
@@ -83,7 +86,7 @@ def fit(
     from ipm.render.scene import setup_options
 
     options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
-                                              budget=budget, time_s=time_limit),
+                                              budget=budget, time_s=time_limit, polish=polish),
                          ply_counts=ply_counts, learned=learned, detail=detail)
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
                                          "params.json", "knit.png", "knit.json")], [photo])
@@ -191,6 +194,7 @@ def compare(
     budget: Annotated[int, typer.Option(help="objective evaluations of each search")]
     = _DEFAULT.budget,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = _DEFAULT.algorithm,
+    polish: Annotated[int, typer.Option(min=0, help=_POLISH_HELP)] = _DEFAULT.polish,
     params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = ";".join(
         ",".join(stage) for stage in _DEFAULT.stages),
     ply_counts: Annotated[int, typer.Option(min=1, max=5, help="search with each of the "
@@ -223,7 +227,8 @@ def compare(
     from ipm.refine.fit import FitOptions
 
     options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
-                                              budget=budget), ply_counts=ply_counts,
+                                              budget=budget, polish=polish),
+                         ply_counts=ply_counts,
                          learned=learned, detail=detail)
     listed = cmp.photos_in(photos, pixel_size, count, setup)
     setup = listed[0].setup
@@ -238,6 +243,7 @@ def compare(
     settings |= {"learned": learned} if learned else {}
     settings |= {"detail": detail} if detail else {}
     settings |= {"ply_counts": ply_counts} if ply_counts > 1 else {}  # (older: one)
+    settings |= {"polish": polish} if polish else {}
     later = options.search.later
     settings |= {"later_stages": [list(s) for s in later]} if later else {}
     saved = out / "settings.json"

@@ -55,6 +55,11 @@ DEFAULT_LEARNED = 0.0
 #: in it that a global search (DIRECT-L) handles.
 SEARCHABLE = tuple(k for k in PAPER_INTERVALS if k != "n")
 
+#: The local search of ``SearchOptions.polish``: BOBYQA's quadratic model reaches a smooth
+#: minimum in few evaluations, and it starts at POLISH_STEP of the box.
+POLISH_ALGORITHM = "LN_BOBYQA"
+POLISH_STEP = 0.05
+
 ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_L")
 
 
@@ -75,7 +80,11 @@ class SearchOptions:
     fiber_seed: the seed of the search's objective; rescore_seeds, rescore_top: the
     re-scoring described in the module doc.  later: further stages, each a tuple of
     parameters searched (with the same algorithm and budget) from the stage before's best
-    (:func:`search_stages`); ``stages`` is all of them."""
+    (:func:`search_stages`); ``stages`` is all of them.  polish: evaluations of a local
+    search (:data:`POLISH_ALGORITHM`) from the best point of each stage, at the scale of the
+    global search's finest cells: DIRECT-L with 30 evaluations in three parameters only
+    samples a grid of ninths of the box, and the fits of different photos landed on the same
+    grid points (docs/real-photos-staged)."""
 
     params: tuple[str, ...] = ("alpha_ply",)
     algorithm: str = "GN_DIRECT_L"
@@ -88,6 +97,7 @@ class SearchOptions:
     prior_weight: float = 1.0
     box_sigmas: float = 3.0
     later: tuple[tuple[str, ...], ...] = ()
+    polish: int = 0
 
     @property
     def stages(self) -> tuple[tuple[str, ...], ...]:
@@ -110,6 +120,9 @@ class SearchOptions:
             raise UserError(f"width must be in (0, 1], got {self.width}")
         if self.time_s is not None and not (np.isfinite(self.time_s) and self.time_s > 0):
             raise UserError(f"time must be a positive number of seconds, got {self.time_s}")
+        if self.polish and self.polish < 2 * most + 2:
+            raise UserError(f"polish must be 0 or at least {2 * most + 2} evaluations for "
+                            f"{most} parameters, got {self.polish}")
         if self.prior_weight < 0 or self.box_sigmas <= 0:
             raise UserError(f"prior_weight must be >= 0 and box_sigmas > 0, got "
                             f"{self.prior_weight}, {self.box_sigmas}")
@@ -221,20 +234,26 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
             on_eval(len(trace), loss, min(trace))
         return posterior(loss, p)
 
-    u0 = np.clip((np.array([getattr(start, k) for k in names]) - lo) / span, 0, 1)
-    opt = nlopt.opt(getattr(nlopt, opts.algorithm), len(names))
-    opt.set_lower_bounds(np.zeros(len(names)))
-    opt.set_upper_bounds(np.ones(len(names)))
-    opt.set_min_objective(f)
-    opt.set_maxeval(opts.budget)
-    if opts.time_s:
-        opt.set_maxtime(opts.time_s)
-    opt.set_initial_step(0.15)
-    opt.set_xtol_rel(1e-3)
-    try:
-        opt.optimize(u0)
-    except (nlopt.RoundoffLimited, nlopt.ForcedStop):
-        pass  # the evaluations so far stand; the best of them is re-scored below
+    def minimise(algorithm: str, u0: np.ndarray, budget: int, step: float) -> None:
+        opt = nlopt.opt(getattr(nlopt, algorithm), len(names))
+        opt.set_lower_bounds(np.zeros(len(names)))
+        opt.set_upper_bounds(np.ones(len(names)))
+        opt.set_min_objective(f)
+        opt.set_maxeval(budget)
+        if opts.time_s:
+            opt.set_maxtime(opts.time_s)
+        opt.set_initial_step(step)
+        opt.set_xtol_rel(1e-3)
+        try:
+            opt.optimize(u0)
+        except (nlopt.RoundoffLimited, nlopt.ForcedStop):
+            pass  # the evaluations so far stand; the best of them is re-scored below
+
+    minimise(opts.algorithm, np.clip((np.array([getattr(start, k) for k in names]) - lo) /
+                                     span, 0, 1), opts.budget, 0.15)
+    if opts.polish:
+        u_best = min(seen, key=lambda u: seen[u][0])
+        minimise(POLISH_ALGORITHM, np.array(u_best), opts.polish, POLISH_STEP)
 
     candidates = sorted(seen.values(), key=lambda c: c[0])[: opts.rescore_top]
     scored = [(float(np.mean(start_losses)), start)]

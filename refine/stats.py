@@ -87,11 +87,10 @@ def _centred_deviation(gray: Tensor) -> Tensor:
     units of the core's contrast (the largest per-row median |deviation|).
 
     Why in those units: the core's contrast is the capture's (lamps, exposure, background
-    level, the fibers' translucency), not the yarn's shape.  A real backlit photo's core is
-    0.35 below a grey background where ipm's render is 0.65 below a bright one; in absolute
-    units the closest core profile to the photo's was a thinner one, and fitted cores came
-    out 10-22% thinner than the photos' (docs/real-photos-thickness).  The autocorrelation,
-    the stripes and the spectrum were already invariant to the contrast."""
+    level, the fibers' translucency), not the yarn's shape.  A real backlit photo's grey,
+    low-contrast core matched a thinner render's core best in absolute units, so fitted
+    cores came out thinner than the photos' (README, "Real photos"; docs/real-photos-staged).
+    The autocorrelation, the stripes and the spectrum were already invariant to it."""
     bg, centre = yarn_centre(gray)
     dev = centre_rows(gray - bg.view(-1, 1, 1, 1), centre)
     contrast = dev[:, 0].median(dim=-1).values.abs().amax(dim=-1)

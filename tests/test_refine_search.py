@@ -217,3 +217,22 @@ def test_the_ply_pitch_search_stays_in_the_samplers_helix_angles():
     outside = TRUTH.replace(alpha_ply=0.9 * a)
     lo, hi = search_box(outside, ("alpha_ply",), 0.1)
     assert lo[0] <= outside.alpha_ply <= hi[0]  # a start outside it stays in the box
+
+
+def test_polish_reaches_a_minimum_between_the_global_searchs_grid_points():
+    """DIRECT-L with 30 evaluations in three parameters samples a coarse grid; a local
+    polish of 20 more from its best gets much closer to a minimum off that grid."""
+    start = TRUTH.replace(alpha=TRUTH.alpha - 1.3, alpha_ply=TRUTH.alpha_ply + 1.7,
+                          R_ply=TRUTH.R_ply + 0.07)
+
+    def error(opts):
+        res = search(quadratic, start, opts)
+        return res, max(abs(getattr(res.best, k) - getattr(TRUTH, k)) / PAPER_INTERVALS[k].width
+                        for k in NAMES)
+
+    coarse, e_coarse = error(SearchOptions(params=NAMES, budget=30))
+    polished, e_polished = error(SearchOptions(params=NAMES, budget=30, polish=20))
+    assert coarse.evaluations <= 30 < polished.evaluations <= 50
+    assert e_polished < 0.5 * e_coarse
+    with pytest.raises(UserError, match="polish"):
+        SearchOptions(params=NAMES, polish=3)

@@ -12,7 +12,8 @@ kind of net, ``ipm train`` trains it one epoch on them, one thread as the recipe
 runs it, and its ``model.json`` gives the epoch's seconds per training image (validation
 and start-up left out: a forward pass over 200 images per epoch, a few per cent).  The
 projection multiplies these rates by the recipe's images and epochs; training runs as two
-one-thread processes side by side, so its wall time is the longer of the two lanes.  Why
+one-thread processes side by side, so its wall time is, phase by phase, the longer of the
+two lanes.  The load average before and after is printed: other processes slow it all.  Why
 projected, not timed: the whole recipe takes hours, and a shared machine makes one full run
 a poor measure of either.
 """
@@ -46,13 +47,15 @@ class Data:
 @dataclass(frozen=True)
 class Training:
     """One ``ipm train`` of the recipe: nets trained one after the other in a process, on a
-    kind of dataset with extra options, in lane 1 or 2 (the two processes side by side)."""
+    kind of dataset with extra options, in lane 1 or 2 (the two processes side by side) of
+    phase 1 or 2 (the script waits for both lanes of a phase before the next)."""
 
     nets: tuple[str, ...]
     epochs: int
     data: str
     lane: int
     options: tuple[str, ...] = ()
+    phase: int = 1
 
 
 DETAIL_TRAIN = ("--input-scale", "1", "--crop", "256", "256")
@@ -76,9 +79,9 @@ RECIPE = {
         Training(("n", "thickness"), 12, "frame", 1),
         Training(("alpha_ply", "R_ply", "r_x", "r_y"), 12, "frame", 2),
         Training(("flyaways",), 8, "frame", 2),
-        Training(("alpha",), 16, "detail window", 1, DETAIL_TRAIN),
-        Training(("alpha_ply",), 24, "frame", 1),
-        Training(("m",), 28, "detail window", 2, DETAIL_TRAIN),
+        Training(("alpha",), 16, "detail window", 1, DETAIL_TRAIN, phase=2),
+        Training(("alpha_ply",), 24, "frame", 1, phase=2),
+        Training(("m",), 28, "detail window", 2, DETAIL_TRAIN, phase=2),
     ),
     "backlit": (
         Training(("alpha", "m"), 18, "backlit frame, varied look", 1, ("--look",)),
@@ -134,6 +137,7 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="markdown report to write")
     args = ap.parse_args()
 
+    load_before = os.getloadavg()
     with tempfile.TemporaryDirectory(prefix="ipm-make-nets-") as tmp:
         folder = Path(tmp)
         render = render_rates(folder, args.images)
@@ -150,25 +154,30 @@ def main() -> None:
         count = sum(data.images.values())
         lines.append(f"| {kind} | {render[kind]:.2f} | {count} | "
                      f"{render[kind] * count / 60:.0f} |")
-    lines += ["", "| setup | nets | epochs | dataset | lane | s per image-epoch (1 thread) | "
-              "minutes |", "|---|---|---|---|---|---|---|"]
+    lines += ["", "| setup | nets | epochs | dataset | phase, lane | s per image-epoch "
+              "(1 thread) | minutes |", "|---|---|---|---|---|---|---|"]
     totals = {}
     for setup, trainings in RECIPE.items():
-        lanes = {1: 0.0, 2: 0.0}
+        lanes: dict[tuple[int, int], float] = {}
         for t in trainings:
-            rate = sum(train[(t.data, net, t.options)] for net in t.nets) / len(t.nets)
-            minutes = sum(train[(t.data, net, t.options)] for net in t.nets) * t.epochs * \
-                TRAIN_IMAGES[t.data] / 60
-            lanes[t.lane] += minutes
-            lines.append(f"| {setup} | {', '.join(t.nets)} | {t.epochs} | {t.data} | {t.lane} | "
-                         f"{rate:.3f} | {minutes:.0f} |")
+            rates = [train[(t.data, net, t.options)] for net in t.nets]
+            minutes = sum(rates) * t.epochs * TRAIN_IMAGES[t.data] / 60
+            lanes[(t.phase, t.lane)] = lanes.get((t.phase, t.lane), 0.0) + minutes
+            lines.append(f"| {setup} | {', '.join(t.nets)} | {t.epochs} | {t.data} | "
+                         f"{t.phase}, {t.lane} | {sum(rates) / len(rates):.3f} | "
+                         f"{minutes:.0f} |")
         data_min = sum(render[k] * d.images.get(setup, 0) for k, d in RECIPE_DATA.items()) / 60
-        totals[setup] = (data_min, lanes[1], lanes[2])
-    lines += ["", "| setup | datasets (min) | training, lane 1 / lane 2 (min) | "
+        phases = sorted({phase for phase, _ in lanes})
+        wall = [max(m for (ph, _), m in lanes.items() if ph == phase) for phase in phases]
+        totals[setup] = (data_min, wall)
+    lines += ["", "| setup | datasets (min) | training, the longer lane of each phase (min) | "
               "**whole recipe, wall (h)** |", "|---|---|---|---|"]
-    for setup, (data_min, one, two) in totals.items():
-        lines.append(f"| {setup} | {data_min:.0f} | {one:.0f} / {two:.0f} | "
-                     f"**{(data_min + max(one, two)) / 60:.1f}** |")
+    for setup, (data_min, wall) in totals.items():
+        lines.append(f"| {setup} | {data_min:.0f} | {' + '.join(f'{m:.0f}' for m in wall)} | "
+                     f"**{(data_min + sum(wall)) / 60:.1f}** |")
+    lines += ["", "Load average (1 / 5 / 15 min) before: "
+              f"{' / '.join(f'{x:.1f}' for x in load_before)}; after: "
+              f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())}."]
     publish("\n".join(lines) + "\n", args.out)
 
 

@@ -31,8 +31,9 @@ _PARAMS_HELP = ("parameters to search (any but the ply count n; m is rounded), "
                 "comma-separated (alpha_ply,R_ply); stages separated by ';' "
                 "(alpha_ply;R_ply,r_x: those from alpha_ply's best); the others keep the "
                 "nets' values")
-_POLISH_HELP = ("evaluations of a local search (BOBYQA) from each stage's best, beyond the "
-                "budget: a global search's budget only samples a coarse grid (0: none)")
+_POLISH_HELP = ("evaluations of a local search (BOBYQA) from the best of each stage of two "
+                "or more parameters, beyond the budget: a global search's budget only "
+                "samples a coarse grid there (0: none)")
 
 
 def fit(

@@ -81,10 +81,13 @@ class SearchOptions:
     re-scoring described in the module doc.  later: further stages, each a tuple of
     parameters searched (with the same algorithm and budget) from the stage before's best
     (:func:`search_stages`); ``stages`` is all of them.  polish: evaluations of a local
-    search (:data:`POLISH_ALGORITHM`) from the best point of each stage, at the scale of the
-    global search's finest cells: DIRECT-L with 30 evaluations in three parameters only
-    samples a grid of ninths of the box, and the fits of different photos landed on the same
-    grid points (docs/real-photos-staged)."""
+    search (:data:`POLISH_ALGORITHM`) from the best point of each stage of two or more
+    parameters, at the scale of the global search's finest cells: DIRECT-L with 30
+    evaluations in three parameters only samples a grid of ninths of the box, and the fits
+    of different photos landed on the same grid points (docs/real-photos-staged).  In one
+    parameter its cells are already a few hundredths of the box, and polishing `alpha_ply`
+    followed one fiber seed's side minima of the stripe loss instead
+    (docs/real-photos-polish-every-stage against docs/real-photos-polish)."""
 
     params: tuple[str, ...] = ("alpha_ply",)
     algorithm: str = "GN_DIRECT_L"
@@ -251,7 +254,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
 
     minimise(opts.algorithm, np.clip((np.array([getattr(start, k) for k in names]) - lo) /
                                      span, 0, 1), opts.budget, 0.15)
-    if opts.polish:
+    if opts.polish and len(names) > 1:
         u_best = min(seen, key=lambda u: seen[u][0])
         minimise(POLISH_ALGORITHM, np.array(u_best), opts.polish, POLISH_STEP)
 

@@ -234,5 +234,7 @@ def test_polish_reaches_a_minimum_between_the_global_searchs_grid_points():
     polished, e_polished = error(SearchOptions(params=NAMES, budget=30, polish=20))
     assert coarse.evaluations <= 30 < polished.evaluations <= 50
     assert e_polished < 0.5 * e_coarse
+    one = search(quadratic, start, SearchOptions(params=("alpha_ply",), budget=30, polish=20))
+    assert one.evaluations <= 30  # one parameter: DIRECT-L's cells are fine already
     with pytest.raises(UserError, match="polish"):
         SearchOptions(params=NAMES, polish=3)

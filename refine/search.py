@@ -87,7 +87,7 @@ class SearchOptions:
     of different photos landed on the same grid points (docs/real-photos-staged).  In one
     parameter its cells are already a few hundredths of the box, and polishing `alpha_ply`
     followed one fiber seed's side minima of the stripe loss instead
-    (docs/real-photos-polish-every-stage against docs/real-photos-polish)."""
+    (docs/real-photos-polish-every-stage against docs/real-photos-staged)."""
 
     params: tuple[str, ...] = ("alpha_ply",)
     algorithm: str = "GN_DIRECT_L"

@@ -243,8 +243,8 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
         opt.set_upper_bounds(np.ones(len(names)))
         opt.set_min_objective(f)
         opt.set_maxeval(budget)
-        if opts.time_s:
-            opt.set_maxtime(opts.time_s)
+        if opts.time_s:  # one bound for the search and its polish together
+            opt.set_maxtime(max(1e-3, opts.time_s - (time.perf_counter() - t_search)))
         opt.set_initial_step(step)
         opt.set_xtol_rel(1e-3)
         try:
@@ -252,6 +252,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
         except (nlopt.RoundoffLimited, nlopt.ForcedStop):
             pass  # the evaluations so far stand; the best of them is re-scored below
 
+    t_search = time.perf_counter()
     minimise(opts.algorithm, np.clip((np.array([getattr(start, k) for k in names]) - lo) /
                                      span, 0, 1), opts.budget, 0.15)
     if opts.polish and len(names) > 1:

@@ -59,6 +59,7 @@ class Training:
 
 
 DETAIL_TRAIN = ("--input-scale", "1", "--crop", "256", "256")
+BACKLIT_TRAIN = ("--setup", "backlit", "--look")
 #: scripts/make_nets.sh, as numbers (tests/test_bench.py checks them against the script).
 RECIPE_DATA = {
     "frame": Data(("--spp", "4-24"), {"frontlit": 2000 + 200}),
@@ -84,11 +85,11 @@ RECIPE = {
         Training(("m",), 28, "detail window", 2, DETAIL_TRAIN, phase=2),
     ),
     "backlit": (
-        Training(("alpha", "m"), 18, "backlit frame, varied look", 1, ("--look",)),
-        Training(("n", "thickness"), 12, "backlit frame, varied look", 1, ("--look",)),
+        Training(("alpha", "m"), 18, "backlit frame, varied look", 1, BACKLIT_TRAIN),
+        Training(("n", "thickness"), 12, "backlit frame, varied look", 1, BACKLIT_TRAIN),
         Training(("alpha_ply", "R_ply", "r_x", "r_y"), 12, "backlit frame, varied look", 2,
-                 ("--look",)),
-        Training(("flyaways",), 8, "backlit frame, varied look", 2, ("--look",)),
+                 BACKLIT_TRAIN),
+        Training(("flyaways",), 8, "backlit frame, varied look", 2, BACKLIT_TRAIN),
     ),
 }
 
@@ -123,10 +124,9 @@ def train_rate(folder: Path, kind: str, net: str, options: tuple[str, ...]) -> f
     """Seconds per training image and epoch of ``net`` on dataset kind ``kind``."""
     data = folder / kind.replace(" ", "-")
     out = folder / f"run-{kind.replace(' ', '-')}-{net}-{len(options)}"
-    setup = ("--setup", "backlit") if "backlit" in kind else ()
     run(["ipm", "train", "--preset", "ensemble", "--nets", net, "--data", str(data / "train"),
          "--val", str(data / "val"), "--epochs", "1", "--blur", "1.5", "--seed", "0",
-         "--lr", "1e-3", "--out", str(out), *setup, *options], threads=1)
+         "--lr", "1e-3", "--out", str(out), *options], threads=1)
     info = json.loads((out / net / "model.json").read_text())
     return info["seconds_per_epoch"] / info["train_images"]
 

@@ -86,7 +86,7 @@ def main() -> None:
     ap.add_argument("--params", default=None, help="the searched parameters and stages, as "
                     "`ipm fit --params` (default: its default)")
     ap.add_argument("--polish", type=int, default=0, help="evaluations of the local polish "
-                    "of each stage, as `ipm fit --polish`")
+                    "of each stage of two or more parameters, as `ipm fit --polish`")
     ap.add_argument("--ply-counts", type=int, default=1, help="search with each of the nets' "
                     "most likely ply counts, as `ipm fit --ply-counts`")
     ap.add_argument("--no-prior", action="store_true", help="the image loss alone, as `ipm "

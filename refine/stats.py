@@ -84,7 +84,7 @@ CONTRAST_FLOOR = 0.02
 
 def _centred_deviation(gray: Tensor) -> Tensor:
     """(B, 1, H, W) signed deviation from the background, the core centred vertically, in
-    units of the core's contrast (the largest per-row median |deviation|).
+    units of the core's contrast (the largest |per-row median deviation|).
 
     Why in those units: the core's contrast is the capture's (lamps, exposure, background
     level, the fibers' translucency), not the yarn's shape.  A real backlit photo's grey,

@@ -22,6 +22,14 @@ judged by whether its render measures like the photo.
   half contrast); the width at each skeleton pixel is twice its distance to the background
   minus one.  The median over the skeleton pixels of components of at least
   :data:`MIN_FIBER_PIXELS` px; defocused fibers look wider, so this errs large.
+* Hairiness (as a Zweigle-type hairiness tester counts it in transmitted light): the fibers
+  that cross a line parallel to the axis at a distance beyond the core's edge, per mm of
+  yarn, both sides averaged, at :data:`HAIR_DISTANCES_MM`.  The image is first brought to
+  :data:`HAIR_PITCH_MM` (box filter) and blurred by one of its pixels, so that a sharp
+  render and a photo of the same fibers count alike; a fiber counts where the signal
+  exceeds :data:`HAIR_SHARE` of the core's (the row profile's peak), so that faint
+  out-of-focus fibers count too.  Each line's count is the mean over its row and the two
+  next to it.
 
     python -m ipm.benchmarks.photo_measures IMAGE... [--frontlit] [--pixel-size MM]
     python -m ipm.benchmarks.photo_measures --data DIR [--out FILE]
@@ -44,6 +52,12 @@ from scipy import ndimage
 FIRST_PEAK_SHARE = 0.6
 #: Flyaway components smaller than this (px) are dust or noise, not fibers.
 MIN_FIBER_PIXELS = 300
+#: Hairiness: distances (mm) beyond the core's edge at which crossing fibers are counted, the
+#: pitch (mm per pixel) they are counted at, and the signal, as a share of the core's, above
+#: which a pixel is fiber.
+HAIR_DISTANCES_MM = (0.05, 0.1, 0.2, 0.4)
+HAIR_PITCH_MM = 0.01
+HAIR_SHARE = 0.2
 
 
 def gray(path: str) -> np.ndarray:
@@ -140,6 +154,38 @@ def fiber_width_px(sig: np.ndarray, diameter_px: float) -> tuple[float, int]:
     widths = 2 * ndimage.distance_transform_edt(half)[skeleton & half] - 1
     widths = widths[widths > 1]
     return (float(np.median(widths)), len(widths)) if len(widths) else (float("nan"), 0)
+
+
+def at_pitch(img: np.ndarray, pixel_size_mm: float, pitch_mm: float) -> np.ndarray:
+    """A grey image (H, W) at ``pixel_size_mm`` brought to the coarser ``pitch_mm`` by a box
+    filter (returned as it is if it is not finer)."""
+    if pixel_size_mm >= pitch_mm:
+        return img
+    f = pixel_size_mm / pitch_mm
+    size = (max(1, round(img.shape[1] * f)), max(1, round(img.shape[0] * f)))
+    im = Image.fromarray(img.astype(np.float32), mode="F").resize(size, Image.Resampling.BOX)
+    return np.asarray(im, dtype=np.float64)
+
+
+def hairiness(img: np.ndarray, pixel_size_mm: float, backlit: bool = True
+              ) -> dict[float, float]:
+    """Fibers per mm of yarn crossing the lines at each of :data:`HAIR_DISTANCES_MM` beyond
+    the core's edge (module notes) in a grey image (H, W) at ``pixel_size_mm``; NaN where a
+    line leaves the frame on both sides."""
+    img = at_pitch(img, pixel_size_mm, HAIR_PITCH_MM)
+    pitch = max(pixel_size_mm, HAIR_PITCH_MM)
+    sig = ndimage.gaussian_filter(levelled(yarn_signal(img, backlit)), 1.0)
+    h, w = sig.shape
+    radius = core_diameter_px(sig) / 2
+    fiber = sig > HAIR_SHARE * np.median(sig, axis=1).max()
+    crossings = np.count_nonzero(fiber[:, 1:] & ~fiber[:, :-1], axis=1) + fiber[:, 0]
+    out = {}
+    for dist in HAIR_DISTANCES_MM:
+        rows = [round((h - 1) / 2 + side * (radius + dist / pitch)) + k
+                for side in (-1, 1) for k in (-1, 0, 1)]
+        rows = [r for r in rows if 0 <= r < h]
+        out[dist] = float(np.mean(crossings[rows])) / (w * pitch) if rows else float("nan")
+    return out
 
 
 def measure_image(img: np.ndarray, backlit: bool) -> dict[str, float]:

@@ -20,7 +20,14 @@ from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
 from ipm.photo import Photo, linear_to_srgb, srgb_to_linear
-from ipm.refine.objective import Detail, Readings, RenderObjective, centre_crop, to_tensor
+from ipm.refine.objective import (
+    Detail,
+    Readings,
+    RenderObjective,
+    centre_crop,
+    search_weights,
+    to_tensor,
+)
 from ipm.refine.search import (
     DEFAULT_LEARNED,
     DEFAULT_PLY_COUNTS,
@@ -211,7 +218,9 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         warnings.append(f"no detail nets read photos of {photo.pixel_size_mm:g} mm per pixel "
                         "(the shipped ones need 0.0125 mm or finer); the loss has no detail "
                         "window")
+    searched = [k for stage in options.search.stages for k in stage]
     objective = RenderObjective(renderer, small, scale, options.spp,
+                                weights=search_weights(searched),
                                 seeds_per_eval=options.seeds_per_eval, tilt_deg=tilt,
                                 readings=readings if learned else None,
                                 readings_weight=options.learned, frame=frame, detail=window)

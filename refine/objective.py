@@ -8,8 +8,9 @@ is deterministic for a given fiber seed: the render seed is fixed.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import torch
@@ -17,6 +18,7 @@ import torch
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb
+from ipm.prior import FLYAWAY_RANGES
 from ipm.refine.stats import (
     GROUPS,
     group_distances,
@@ -36,6 +38,18 @@ from ipm.render.scene import Frame
 #: noise), so they are off.
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
                    "period": 1.0, "stripes": 2.0, "histogram": 0.0}
+#: The weight of the ``flyaways`` group in a search that moves flyaway parameters.
+FLYAWAY_WEIGHT = 1.0
+
+
+def search_weights(searched: Iterable[str]) -> dict[str, float]:
+    """The group weights of a search of the parameters ``searched`` (all its stages):
+    :data:`DEFAULT_WEIGHTS`, and the ``flyaways`` group at :data:`FLYAWAY_WEIGHT` if any
+    stage moves a flyaway parameter (:data:`ipm.prior.FLYAWAY_RANGES`), so that the fit's
+    loss sees what that stage changed."""
+    if any(k in FLYAWAY_RANGES for k in searched):
+        return {**DEFAULT_WEIGHTS, "flyaways": FLYAWAY_WEIGHT}
+    return DEFAULT_WEIGHTS
 
 
 #: Learned statistics of an sRGB image at a pixel size (mm): named groups of (1, K) tensors.
@@ -178,6 +192,17 @@ class RenderObjective:
         d = group_distances(self._mean_stats(params, seed), self.photo_stats)
         return {g: float(v[0]) for g, v in d.items()}
 
-    def __call__(self, params: YarnParams, seed: int) -> float:
+    def __call__(self, params: YarnParams, seed: int,
+                 weights: dict[str, float] | None = None) -> float:
         return float(stat_distance(self._mean_stats(params, seed), self.photo_stats,
-                                   self.weights)[0])
+                                   self.weights if weights is None else weights)[0])
+
+    def for_stage(self, names: Sequence[str]) -> Callable[[YarnParams, int], float]:
+        """The objective of a search stage moving ``names`` (:func:`ipm.refine.search.
+        search_stages`): a stage of flyaway parameters alone is scored by the ``flyaways``
+        group alone, any other by the objective itself.  Why: flyaways that cross the core
+        band move the stripes' statistics more than the flyaway profile moves (seen on the
+        real photos), so with every group that stage followed the stripes."""
+        if names and all(k in FLYAWAY_RANGES for k in names):
+            return partial(self, weights={k: float(k == "flyaways") for k in self.photo_stats})
+        return self

@@ -31,9 +31,11 @@ from scipy.stats import chi2
 
 from ipm.errors import UserError
 from ipm.params import PAPER_INTERVALS, YarnParams, clipped
-from ipm.prior import GAMMA_DEG
+from ipm.prior import FLYAWAY_RANGES, GAMMA_DEG
 
-#: An objective: the loss of the yarn ``params`` rendered with fiber seed ``seed``.
+#: An objective: the loss of the yarn ``params`` rendered with fiber seed ``seed``.  One with
+#: a ``for_stage(names)`` method (:class:`ipm.refine.objective.RenderObjective`) gives each
+#: stage of :func:`search_stages` the objective that stage is searched with.
 Objective = Callable[[YarnParams, int], float]
 
 #: The probability the intervals are meant to hold the truth with.
@@ -59,6 +61,10 @@ SEARCHABLE = tuple(k for k in PAPER_INTERVALS if k != "n")
 #: minimum in few evaluations, and it starts at POLISH_STEP of the box.
 POLISH_ALGORITHM = "LN_BOBYQA"
 POLISH_STEP = 0.05
+
+#: Parameters searched on a log scale: the flyaways' amount and lengths, whose real values
+#: (a few short hairs) sit in the low corner of their ranges.
+LOG_SEARCHED = ("g", "l_hair", "l_loop", "d_mean", "d_std")
 
 ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_L")
 
@@ -162,15 +168,20 @@ def search_box(start: YarnParams, names: tuple[str, ...], width: float,
                ) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi) of the search around ``start``, inside the prior's box: ``width`` of each
     range on either side, or ``box_sigmas * sigma[k]`` where that is narrower; ``alpha_ply``
-    searched without ``R_ply`` also within :func:`ply_pitch_range`."""
+    searched without ``R_ply`` also within :func:`ply_pitch_range`.  A flyaway parameter
+    (:data:`ipm.prior.FLYAWAY_RANGES`) is searched over its whole sampler range, down to its
+    interval's low end (a cleaner yarn than the paper's), unless ``sigma`` narrows it: the
+    nets do not read flyaways off renders they were not trained on
+    (benchmarks/results/nets_accuracy_cycles_frontlit.md: g, l_hair, l_loop worse than
+    the mean), so a box around their guess need not hold the photo's."""
     lo, hi = [], []
     for k in names:
         iv = PAPER_INTERVALS[k]
-        half = width * iv.width
+        half = iv.width if k in FLYAWAY_RANGES else width * iv.width
         if sigma is not None:
             half = min(half, box_sigmas * sigma[k])
         v = getattr(start, k)
-        a, b = (iv.lo, iv.hi)
+        a, b = (iv.lo, FLYAWAY_RANGES[k][1]) if k in FLYAWAY_RANGES else (iv.lo, iv.hi)
         if k == "alpha_ply" and "R_ply" not in names:
             a, b = ply_pitch_range(start)
         lo.append(min(v, max(iv.lo, a, v - half)))  # the start stays inside
@@ -202,6 +213,8 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
             raise UserError(f"no positive prior sigma for {', '.join(missing)} (models "
                             "without validation errors: refine with --no-prior)")
     lo, hi = search_box(start, names, opts.width, sigma, opts.box_sigmas)
+    logs = np.array([k in LOG_SEARCHED for k in names])
+    lo, hi = np.where(logs, np.log(lo), lo), np.where(logs, np.log(hi), hi)
     span = np.where(hi > lo, hi - lo, 1.0)
     t0 = time.perf_counter()
     trace: list[float] = []
@@ -226,6 +239,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
 
     def to_params(u: np.ndarray) -> YarnParams:
         vals = lo + np.clip(u, 0, 1) * span
+        vals = np.where(logs, np.exp(vals), vals)
         return start.replace(**{k: clipped(k, v) for k, v in zip(names, vals, strict=True)})
 
     def f(u: np.ndarray, grad: np.ndarray) -> float:
@@ -253,8 +267,9 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
             pass  # the evaluations so far stand; the best of them is re-scored below
 
     t_search = time.perf_counter()
-    minimise(opts.algorithm, np.clip((np.array([getattr(start, k) for k in names]) - lo) /
-                                     span, 0, 1), opts.budget, 0.15)
+    u0 = np.array([getattr(start, k) for k in names], dtype=float)
+    u0 = (np.where(logs, np.log(u0), u0) - lo) / span
+    minimise(opts.algorithm, np.clip(u0, 0, 1), opts.budget, 0.15)
     if opts.polish and len(names) > 1:
         u_best = min(seen, key=lambda u: seen[u][0])
         minimise(POLISH_ALGORITHM, np.array(u_best), opts.polish, POLISH_STEP)
@@ -306,14 +321,27 @@ def search_stages(objective: Objective, start: YarnParams, opts: SearchOptions =
                   on_eval: Callable[[int, float, float], None] | None = None,
                   sigma: dict[str, float] | None = None) -> SearchResult:
     """:func:`search` of each of ``opts.stages`` in turn, each from the stage before's best
-    (a staged search: the parameters the loss sees most first).  Improved if any stage
-    moved away from its start."""
+    (a staged search: the parameters the loss sees most first), with the objective's
+    ``for_stage`` if it has one.  Improved if any stage moved away from its start."""
     results: list[SearchResult] = []
+    own: list[bool] = []  # whether a stage was searched with ``objective`` itself
     current = start
     for names in opts.stages:
         stage = replace(opts, params=names, later=())
-        results.append(search(objective, current, stage, _offset(on_eval, results), sigma))
+        of_stage = objective.for_stage(names) if hasattr(objective, "for_stage") else objective
+        own.append(of_stage is objective)
+        results.append(search(of_stage, current, stage, _offset(on_eval, results), sigma))
         current = results[-1].best
+
+    def rescored(p: YarnParams) -> float:
+        return float(np.mean([_finite(objective(p, s))
+                              for s in (opts.fiber_seed, *opts.rescore_seeds)]))
+
+    # the losses reported at both ends are the objective's own, whatever the stages' were
+    if not own[0]:
+        results[0] = replace(results[0], start_loss=rescored(start))
+    if not own[-1]:
+        results[-1] = replace(results[-1], best_loss=rescored(current))
     if len(results) == 1:
         return results[0]
     return _combined(start, results, results[-1], any(r.improved for r in results))

@@ -150,6 +150,28 @@ def test_the_nets_readings_enter_the_loss_at_their_weight(photo):
     assert thick["net_R_ply"] > 4 * d["net_R_ply"]
 
 
+def test_a_stage_of_flyaways_is_scored_by_the_flyaway_profile_alone(photo):
+    """RenderObjective.for_stage: a stage of flyaway parameters alone is the flyaways group's
+    distance and nothing else; the real render of a yarn with three times the flyaways and
+    long hairs reads further from the photo than the true yarn; any other stage is the
+    objective itself, whose weights count the flyaways once a search moves them."""
+    from ipm.photo import Photo
+    from ipm.refine.objective import DEFAULT_WEIGHTS, RenderObjective, search_weights
+    from ipm.render.renderer import Renderer
+
+    small = Photo.read(photo, 0.04).at_pitch(0.2)
+    objective = RenderObjective(Renderer(), small, 0.2, 4,
+                                weights=search_weights(["R_ply", "g"]))
+    golden = preset("golden")
+    stage = objective.for_stage(("g", "l_hair"))
+    assert stage(golden, 1) == pytest.approx(objective.group_distances(golden, 1)["flyaways"])
+    hairy = golden.replace(g=min(300, 3 * golden.g), l_hair=3 * golden.l_hair)
+    assert stage(hairy, 1) > 3 * stage(golden, 1)
+    assert objective.for_stage(("alpha_ply", "g")) is objective
+    assert objective.weights["flyaways"] > 0 == search_weights(["R_ply"])["flyaways"]
+    assert search_weights(["R_ply"]) == DEFAULT_WEIGHTS
+
+
 def test_a_detail_window_enters_the_loss_through_the_detail_nets_alone(photo):
     """A Detail view: each evaluation also renders a window at the detail nets' pitch, and
     only those nets' readings of it and of the photo's window are groups of the loss, at the

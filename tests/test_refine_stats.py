@@ -64,6 +64,30 @@ def test_core_and_flyaways_do_not_depend_on_the_capture_contrast():
     assert group_distance(photo, thinner, "core") > 0.01
 
 
+def with_hairs(img: torch.Tensor, count: int, reach: float, h: int = 96, w: int = 320,
+               half_width: float = 96 / 6) -> torch.Tensor:
+    """``img`` with ``count`` dark vertical hairs 2 px wide standing ``reach`` px out of the
+    band's upper edge."""
+    out = img.clone()
+    top = round(h / 2 - half_width)
+    for i in range(count):
+        x = 10 + i * (w - 20) // count
+        out[..., max(0, round(top - reach)): top, x: x + 2] -= 0.3
+    return out.clamp(0, 1)
+
+
+def test_flyaways_see_the_hairs_not_the_cores_texture():
+    """The flyaway profile: hairs twice as long or twice as many read far apart, while a core
+    whose stripes are of another angle and period reads as the same hairs."""
+    a = with_hairs(stripes(0.6), 8, 12)
+    other_core = with_hairs(stripes(0.9, period=20), 8, 12)
+    hairs = {"longer": with_hairs(stripes(0.6), 8, 24), "more": with_hairs(stripes(0.6), 16, 12),
+             "none": stripes(0.6)}
+    same = group_distance(a, other_core, "flyaways")
+    for name, img in hairs.items():
+        assert group_distance(a, img, "flyaways") > 20 * same, name
+
+
 def test_sees_core_thickness():
     a = stripes(0.6)
     thick = a.clone()

@@ -141,8 +141,10 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
     return done
 
 
-def summary(rows: list[dict], truth: Sequence[YarnParams | None]) -> dict:
-    """Counts, median fit time, and with labels the MAE per refined parameter of both
+def summary(rows: list[dict], truth: Sequence[YarnParams | None],
+            params: Sequence[str] = RAW_CONTINUOUS) -> dict:
+    """Counts, median fit time, and with labels the MAE per parameter of ``params`` (the
+    continuous raw-yarn ones, and any other the search moved: :func:`reported`) of both
     reconstructions (raw units) and the change in %."""
     out: dict = {"count": len(rows), "improved": int(sum(r["improved"] for r in rows)),
                  "fit_seconds_median": float(np.median([r["seconds"] for r in rows]))
@@ -150,7 +152,7 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None]) -> dict:
     labelled = [(r, t) for r, t in zip(rows, truth, strict=False) if t is not None]
     if not labelled:
         return out
-    for k in RAW_CONTINUOUS:
+    for k in params:
         a = float(np.mean([abs(r["neural"][k] - getattr(t, k)) for r, t in labelled]))
         b = float(np.mean([abs(r["refined"][k] - getattr(t, k)) for r, t in labelled]))
         out["params"][k] = {"neural": a, "refined": b,
@@ -165,10 +167,18 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None]) -> dict:
     return out
 
 
-def csv_text(rows: list[dict], truth: Sequence[YarnParams | None]) -> str:
-    """One row per photo: losses, whether the search improved, time, and per refined
-    parameter the neural, refined (and true) values."""
-    keys = ("n", *RAW_CONTINUOUS)
+def reported(options) -> tuple[str, ...]:
+    """The parameters a report of fits with ``options`` (:class:`ipm.refine.fit.FitOptions`)
+    shows: the continuous raw-yarn ones, then any other its search moves (flyaways)."""
+    searched = [k for stage in options.search.stages for k in stage]
+    return RAW_CONTINUOUS + tuple(dict.fromkeys(k for k in searched if k not in RAW_CONTINUOUS))
+
+
+def csv_text(rows: list[dict], truth: Sequence[YarnParams | None],
+             params: Sequence[str] = RAW_CONTINUOUS) -> str:
+    """One row per photo: losses, whether the search improved, time, and per parameter of
+    ``params`` (and the ply count) the neural, refined (and true) values."""
+    keys = ("n", *params)
     labelled = any(t is not None for t in truth)
     head = ["image", "loss_neural", "loss_refined", "improved", "seconds", "tilt_deg"]
     for k in keys:
@@ -255,9 +265,9 @@ def compare(photos: Sequence[Record], out: Path, ensemble, options, prior: bool 
         lambda photo: ensemble.detail_readings(photo.pixel_size_mm))
     fitted = [i for i, r in enumerate(every) if "error" not in r]
     rows, truth, photos = ([seq[i] for i in fitted] for seq in (every, truth, photos))
-    s = summary(rows, truth)
+    s = summary(rows, truth, reported(options))
     s["failed"] = [r for r in every if "error" in r]
-    write_text(out / "results.csv", csv_text(rows, truth))
+    write_text(out / "results.csv", csv_text(rows, truth, reported(options)))
     figure = None
     if figure_count and rows:
         gain = [r["loss_neural"] - r["loss_refined"] for r in rows]

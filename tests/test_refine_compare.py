@@ -133,3 +133,20 @@ def test_summary_counts_how_often_the_intervals_hold_the_truth():
     s = summary(rows, truth)["params"]
     assert s["alpha_ply"]["interval_holds"] == 0.5 and s["alpha_ply"]["interval_width"] == 1.0
     assert "interval_holds" not in s["alpha"]
+
+
+def test_the_report_shows_the_flyaway_parameters_a_search_moved():
+    from ipm.params import RAW_CONTINUOUS
+    from ipm.presets import preset
+    from ipm.refine.compare import reported, summary
+    from ipm.refine.fit import FitOptions
+    from ipm.refine.search import SearchOptions
+
+    staged = FitOptions(search=SearchOptions(params=("R_ply",), later=(("g", "l_hair"),)))
+    assert reported(staged) == (*RAW_CONTINUOUS, "g", "l_hair")
+    assert reported(FitOptions()) == RAW_CONTINUOUS
+    t = preset("golden")
+    rows = [{"neural": t.replace(g=t.g + 40).to_dict(), "refined": t.replace(g=t.g + 10).to_dict(),
+             "improved": True, "seconds": 1.0}]
+    s = summary(rows, [t], reported(staged))["params"]
+    assert s["g"]["neural"] == 40 and s["g"]["refined"] == 10 and s["g"]["change_pct"] == -75

@@ -201,8 +201,9 @@ class RenderObjective:
         """The objective of a search stage moving ``names`` (:func:`ipm.refine.search.
         search_stages`): a stage of flyaway parameters alone is scored by the ``flyaways``
         group alone, any other by the objective itself.  Why: flyaways that cross the core
-        band move the stripes' statistics more than the flyaway profile moves (seen on the
-        real photos), so with every group that stage followed the stripes."""
+        band move the period and stripes groups too, and on a real photo a grid of flyaway
+        amounts and lengths moved those more than the flyaway group: scored by every group,
+        that stage would follow the stripes."""
         if names and all(k in FLYAWAY_RANGES for k in names):
             return partial(self, weights={k: float(k == "flyaways") for k in self.photo_stats})
         return self

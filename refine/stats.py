@@ -150,11 +150,10 @@ def _crossings(d: Tensor) -> Tensor:
     """(B, H): per row of ``d`` (B, H, W) in units of the core's contrast, the fibers that
     cross it per pixel along the axis: the rises of its soft fiber mask (a logistic step at
     :data:`FIBER_LEVEL`), after a blur of one pixel against pixel noise.  A sharp fiber and
-    a defocused one count alike, as long as it stands out by FIBER_LEVEL.  Why not the
-    darkness (the per-row mean minus the median): fitted to it, the renders of three real
-    photos came out with a sixth of the photos' fibers crossing 0.1 and 0.2 mm beyond the
-    core (:func:`ipm.benchmarks.photo_measures.hairiness`), fitted to the crossings with a
-    third and the same."""
+    a defocused one count alike, as long as it stands out by FIBER_LEVEL; the darkness they
+    add to a row (the statistic's former form, the per-row mean minus the median) depends
+    on how opaque and sharp each fiber is, which differs between a render and a photo.
+    How the fitted renders' hairiness compares with real photos': docs/real-photos-flyaways."""
     x = kornia.filters.gaussian_blur2d(d[:, None].abs(), (5, 5), (1.0, 1.0),
                                        border_type="replicate")[:, 0]
     fiber = torch.sigmoid((x - FIBER_LEVEL) / FIBER_SOFTNESS)

@@ -197,13 +197,27 @@ class RenderObjective:
         return float(stat_distance(self._mean_stats(params, seed), self.photo_stats,
                                    self.weights if weights is None else weights)[0])
 
-    def for_stage(self, names: Sequence[str]) -> Callable[[YarnParams, int], float]:
-        """The objective of a search stage moving ``names`` (:func:`ipm.refine.search.
-        search_stages`): a stage of flyaway parameters alone is scored by the ``flyaways``
-        group alone, any other by the objective itself.  Why: flyaways that cross the core
-        band move the period and stripes groups too, and on a real photo a grid of flyaway
-        amounts and lengths moved those more than the flyaway group: scored by every group,
-        that stage would follow the stripes."""
+    def for_stage(self, names: Sequence[str], earlier: Sequence[str] = ()
+                  ) -> Callable[[YarnParams, int], float]:
+        """The objective of a search stage moving ``names`` after stages that moved
+        ``earlier`` (:func:`ipm.refine.search.search_stages`), scored by the groups that see
+        those parameters:
+
+        * flyaway parameters alone: the ``flyaways`` group alone.  Flyaways that cross the
+          core band move the period and stripes groups too, and on a real photo a grid of
+          flyaway amounts and lengths moved those more than the flyaway group: scored by
+          every group, that stage would follow the stripes;
+        * ``alpha_ply`` alone after a stage that moved ``R_ply``: the ``period`` and
+          ``stripes`` groups alone.  The core profile depends on the ply pitch too, and a
+          thickness fitted at the nets' pitch holds the core profile there: on the real
+          photos the core group pulled the pitch back towards the nets' (often twice the
+          photo's stripe period) where the stripes put it at the photo's
+          (docs/real-photos-flyaways against docs/real-photos-pitch);
+        * any other: the objective itself."""
         if names and all(k in FLYAWAY_RANGES for k in names):
-            return partial(self, weights={k: float(k == "flyaways") for k in self.photo_stats})
-        return self
+            groups = {"flyaways": FLYAWAY_WEIGHT}
+        elif tuple(names) == ("alpha_ply",) and "R_ply" in earlier:
+            groups = {k: self.weights[k] for k in ("period", "stripes")}
+        else:
+            return self
+        return partial(self, weights={k: groups.get(k, 0.0) for k in self.photo_stats})

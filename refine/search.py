@@ -34,8 +34,8 @@ from ipm.params import PAPER_INTERVALS, YarnParams, clipped
 from ipm.prior import FLYAWAY_RANGES, GAMMA_DEG
 
 #: An objective: the loss of the yarn ``params`` rendered with fiber seed ``seed``.  One with
-#: a ``for_stage(names)`` method (:class:`ipm.refine.objective.RenderObjective`) gives each
-#: stage of :func:`search_stages` the objective that stage is searched with.
+#: a ``for_stage(names, earlier)`` method (:class:`ipm.refine.objective.RenderObjective`)
+#: gives each stage of :func:`search_stages` the objective that stage is searched with.
 Objective = Callable[[YarnParams, int], float]
 
 #: The probability the intervals are meant to hold the truth with.
@@ -326,9 +326,11 @@ def search_stages(objective: Objective, start: YarnParams, opts: SearchOptions =
     results: list[SearchResult] = []
     own: list[bool] = []  # whether a stage was searched with ``objective`` itself
     current = start
-    for names in opts.stages:
+    for i, names in enumerate(opts.stages):
         stage = replace(opts, params=names, later=())
-        of_stage = objective.for_stage(names) if hasattr(objective, "for_stage") else objective
+        earlier = [k for before in opts.stages[:i] for k in before]
+        of_stage = (objective.for_stage(names, earlier) if hasattr(objective, "for_stage")
+                    else objective)
         own.append(of_stage is objective)
         results.append(search(of_stage, current, stage, _offset(on_eval, results), sigma))
         current = results[-1].best

@@ -153,8 +153,9 @@ def test_the_nets_readings_enter_the_loss_at_their_weight(photo):
 def test_a_stage_of_flyaways_is_scored_by_the_flyaway_profile_alone(photo):
     """RenderObjective.for_stage: a stage of flyaway parameters alone is the flyaways group's
     distance and nothing else; the real render of a yarn with three times the flyaways and
-    long hairs reads further from the photo than the true yarn; any other stage is the
-    objective itself, whose weights count the flyaways once a search moves them."""
+    long hairs reads further from the photo than the true yarn; the pitch after the
+    thickness is the stripes' period groups alone; any other stage is the objective
+    itself, whose weights count the flyaways once a search moves them."""
     from ipm.photo import Photo
     from ipm.refine.objective import DEFAULT_WEIGHTS, RenderObjective, search_weights
     from ipm.render.renderer import Renderer
@@ -168,6 +169,10 @@ def test_a_stage_of_flyaways_is_scored_by_the_flyaway_profile_alone(photo):
     hairy = golden.replace(g=min(300, 3 * golden.g), l_hair=3 * golden.l_hair)
     assert stage(hairy, 1) > 3 * stage(golden, 1)
     assert objective.for_stage(("alpha_ply", "g")) is objective
+    assert objective.for_stage(("alpha_ply",)) is objective  # a fit of the pitch alone
+    pitch = objective.for_stage(("alpha_ply",), earlier=("R_ply", "r_x"))
+    d = objective.group_distances(golden, 1)
+    assert pitch(golden, 1) == pytest.approx(d["period"] + 2 * d["stripes"])
     assert objective.weights["flyaways"] > 0 == search_weights(["R_ply"])["flyaways"]
     assert search_weights(["R_ply"]) == DEFAULT_WEIGHTS
 

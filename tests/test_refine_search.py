@@ -209,7 +209,7 @@ def test_a_stage_is_searched_with_the_objectives_own_objective_for_it():
         def __call__(self, p, seed):
             return quadratic(p, seed) + ((p.g - truth.g) / 100) ** 2 + 1.0
 
-        def for_stage(self, names):
+        def for_stage(self, names, earlier):
             return (lambda p, seed: ((p.g - truth.g) / 100) ** 2) if "g" in names else self
 
     start = TRUTH.replace(g=150, alpha_ply=TRUTH.alpha_ply + 2.0)

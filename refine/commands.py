@@ -31,7 +31,8 @@ _PARAMS_HELP = ("parameters to search (any but the ply count n; m is rounded), "
                 "comma-separated (alpha_ply,R_ply); stages separated by ';' "
                 "(alpha_ply;R_ply,r_x: those from alpha_ply's best); the others keep the "
                 "nets' values.  A stage of flyaway parameters alone (g,l_hair,d_mean) is "
-                "scored by the flyaway profile, over the whole sampler range")
+                "scored by the flyaway profile, over the whole sampler range; alpha_ply "
+                "alone after R_ply by the stripes' period")
 _POLISH_HELP = ("evaluations of a local search (BOBYQA) from the best of each stage of two "
                 "or more parameters, beyond the budget: a global search's budget only "
                 "samples a coarse grid there (0: none)")

@@ -173,7 +173,9 @@ def search_box(start: YarnParams, names: tuple[str, ...], width: float,
     interval's low end (a cleaner yarn than the paper's), unless ``sigma`` narrows it: the
     nets do not read flyaways off renders they were not trained on
     (benchmarks/results/nets_accuracy_cycles_frontlit.md: g, l_hair, l_loop worse than
-    the mean), so a box around their guess need not hold the photo's."""
+    the mean), so a box around their guess need not hold the photo's.  (The search does
+    not recover the true flyaways of such renders either: it matches their look,
+    docs/compare-cycles-backlit-flyaways.)"""
     lo, hi = [], []
     for k in names:
         iv = PAPER_INTERVALS[k]

@@ -170,8 +170,8 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None],
 def reported(options) -> tuple[str, ...]:
     """The parameters a report of fits with ``options`` (:class:`ipm.refine.fit.FitOptions`)
     shows: the continuous raw-yarn ones, then any other its search moves (flyaways)."""
-    searched = [k for stage in options.search.stages for k in stage]
-    return RAW_CONTINUOUS + tuple(dict.fromkeys(k for k in searched if k not in RAW_CONTINUOUS))
+    return RAW_CONTINUOUS + tuple(dict.fromkeys(k for k in options.search.searched
+                                                if k not in RAW_CONTINUOUS))
 
 
 def csv_text(rows: list[dict], truth: Sequence[YarnParams | None],

@@ -218,9 +218,8 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         warnings.append(f"no detail nets read photos of {photo.pixel_size_mm:g} mm per pixel "
                         "(the shipped ones need 0.0125 mm or finer); the loss has no detail "
                         "window")
-    searched = [k for stage in options.search.stages for k in stage]
     objective = RenderObjective(renderer, small, scale, options.spp,
-                                weights=search_weights(searched),
+                                weights=search_weights(options.search.searched),
                                 seeds_per_eval=options.seeds_per_eval, tilt_deg=tilt,
                                 readings=readings if learned else None,
                                 readings_weight=options.learned, frame=frame, detail=window)

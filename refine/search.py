@@ -112,9 +112,13 @@ class SearchOptions:
     def stages(self) -> tuple[tuple[str, ...], ...]:
         return (self.params, *self.later)
 
+    @property
+    def searched(self) -> list[str]:
+        """Every parameter of every stage, in the stages' order."""
+        return [k for stage in self.stages for k in stage]
+
     def __post_init__(self) -> None:
-        names = [p for stage in self.stages for p in stage]
-        bad = [p for p in names if p not in SEARCHABLE]
+        bad = [p for p in self.searched if p not in SEARCHABLE]
         if bad or not all(self.stages):
             raise UserError(f"cannot search {bad or 'no parameters'}: choose among "
                             f"{', '.join(SEARCHABLE)} (the ply count takes --ply-counts)")

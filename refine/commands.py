@@ -30,10 +30,9 @@ _DETAIL_HELP = ("weight of the detail nets' readings (alpha, m) of a window rend
 _PARAMS_HELP = ("parameters to search (any but the ply count n; m is rounded), "
                 "comma-separated (alpha_ply,R_ply); stages separated by ';' "
                 "(alpha_ply;R_ply,r_x: those from alpha_ply's best); the others keep the "
-                "nets' values.  'thickness' scales R_ply, r_x and r_y by one factor, "
-                "keeping the plies' packing.  A stage of flyaway parameters alone "
-                "(g,l_hair,d_mean) is scored by the flyaway profile, over the whole sampler "
-                "range; alpha_ply alone after R_ply or thickness by the stripes' period")
+                "nets' values.  A stage of flyaway parameters alone (g,l_hair,d_mean) is "
+                "scored by the flyaway profile, over the whole sampler range; alpha_ply "
+                "alone after R_ply by the stripes' period")
 _POLISH_HELP = ("evaluations of a local search (BOBYQA) from the best of each stage of two "
                 "or more parameters, beyond the budget: a global search's budget only "
                 "samples a coarse grid there (0: none)")

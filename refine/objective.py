@@ -207,8 +207,7 @@ class RenderObjective:
           core band move the period and stripes groups too, and on a real photo a grid of
           flyaway amounts and lengths moved those more than the flyaway group: scored by
           every group, that stage would follow the stripes;
-        * ``alpha_ply`` alone after a stage that moved ``R_ply`` (``earlier`` names the
-          parameters moved, a ``thickness`` stage's as R_ply, r_x, r_y): the ``period`` and
+        * ``alpha_ply`` alone after a stage that moved ``R_ply``: the ``period`` and
           ``stripes`` groups alone.  The core profile depends on the ply pitch too, and a
           thickness fitted at the nets' pitch holds the core profile there: on the real
           photos the core group pulled the pitch back towards the nets' (often twice the

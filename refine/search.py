@@ -57,16 +57,6 @@ DEFAULT_LEARNED = 0.0
 #: in it that a global search (DIRECT-L) handles.
 SEARCHABLE = tuple(k for k in PAPER_INTERVALS if k != "n")
 
-#: Searched as one: ``thickness`` multiplies ``R_ply``, ``r_x`` and ``r_y`` by one factor,
-#: so that their ratios stay the start's (the nets', drawn from the guided sampler's
-#: packing of the plies).  Why: the core profile sees the yarn's width ``2 (R_ply + r)``
-#: but hardly how it splits between the ply helix and the plies' own radii; searched
-#: apart, that split drifted to R_ply's floor on the real photos, where the plies merge
-#: into one dark cylinder without the ply stripes the pitch is then fitted to (README,
-#: "Real photos").  The factor is searched on a log scale within :data:`SCALE_SPAN` of 1.
-SCALED = {"thickness": ("R_ply", "r_x", "r_y")}
-SCALE_SPAN = 4.0
-
 #: The local search of ``SearchOptions.polish``: BOBYQA's quadratic model reaches a smooth
 #: minimum in few evaluations, and it starts at POLISH_STEP of the box.
 POLISH_ALGORITHM = "LN_BOBYQA"
@@ -74,7 +64,7 @@ POLISH_STEP = 0.05
 
 #: Parameters searched on a log scale: the flyaways' amount and lengths, whose real values
 #: (a few short hairs) sit in the low corner of their ranges.
-LOG_SEARCHED = ("g", "l_hair", "l_loop", "d_mean", "d_std", *SCALED)
+LOG_SEARCHED = ("g", "l_hair", "l_loop", "d_mean", "d_std")
 
 ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_L")
 
@@ -124,20 +114,14 @@ class SearchOptions:
 
     @property
     def searched(self) -> list[str]:
-        """Every parameter every stage moves, in the stages' order (:data:`SCALED` names
-        as the parameters they scale)."""
-        return [k for stage in self.stages for k in moved(stage)]
+        """Every parameter of every stage, in the stages' order."""
+        return [k for stage in self.stages for k in stage]
 
     def __post_init__(self) -> None:
-        bad = [p for stage in self.stages for p in stage if p not in SEARCHABLE + tuple(SCALED)]
+        bad = [p for p in self.searched if p not in SEARCHABLE]
         if bad or not all(self.stages):
             raise UserError(f"cannot search {bad or 'no parameters'}: choose among "
-                            f"{', '.join(SEARCHABLE + tuple(SCALED))} (the ply count takes "
-                            "--ply-counts)")
-        twice = [s for s in self.stages if len(set(moved(s))) < len(moved(s))]
-        if twice:
-            raise UserError(f"a stage moves a parameter twice: {','.join(twice[0])} "
-                            f"(thickness is {','.join(SCALED['thickness'])})")
+                            f"{', '.join(SEARCHABLE)} (the ply count takes --ply-counts)")
         if self.algorithm not in ALGORITHMS:
             raise UserError(f"unknown algorithm {self.algorithm!r}; choose one of "
                             f"{', '.join(ALGORITHMS)}")
@@ -155,11 +139,6 @@ class SearchOptions:
         if self.prior_weight < 0 or self.box_sigmas <= 0:
             raise UserError(f"prior_weight must be >= 0 and box_sigmas > 0, got "
                             f"{self.prior_weight}, {self.box_sigmas}")
-
-
-def moved(names: Sequence[str]) -> list[str]:
-    """The parameters a stage searching ``names`` moves: a :data:`SCALED` name's members."""
-    return [m for k in names for m in SCALED.get(k, (k,))]
 
 
 def search_stages_of(text: str) -> dict[str, tuple]:
@@ -192,12 +171,10 @@ def search_box(start: YarnParams, names: tuple[str, ...], width: float,
                sigma: dict[str, float] | None = None, box_sigmas: float = 3.0
                ) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi) of the search around ``start``, inside the prior's box: ``width`` of each
-    range on either side, or ``box_sigmas * sigma[k]`` where that is narrower (a
-    :data:`SCALED` name: its factor, around 1, within :data:`SCALE_SPAN` and each member's
-    interval); ``alpha_ply`` searched without ``R_ply`` also within :func:`ply_pitch_range`.
-    A flyaway parameter (:data:`ipm.prior.FLYAWAY_RANGES`) is searched over its whole sampler
-    range, down to its interval's low end (a cleaner yarn than the paper's), unless ``sigma``
-    narrows it: the
+    range on either side, or ``box_sigmas * sigma[k]`` where that is narrower; ``alpha_ply``
+    searched without ``R_ply`` also within :func:`ply_pitch_range`.  A flyaway parameter
+    (:data:`ipm.prior.FLYAWAY_RANGES`) is searched over its whole sampler range, down to its
+    interval's low end (a cleaner yarn than the paper's), unless ``sigma`` narrows it: the
     nets do not read flyaways off renders they were not trained on
     (benchmarks/results/nets_accuracy_cycles_frontlit.md: g, l_hair, l_loop worse than
     the mean), so a box around their guess need not hold the photo's.  (The search does
@@ -205,23 +182,13 @@ def search_box(start: YarnParams, names: tuple[str, ...], width: float,
     docs/compare-cycles-backlit-flyaways.)"""
     lo, hi = [], []
     for k in names:
-        if k in SCALED:  # the factor's range: each member inside its interval
-            members = [(PAPER_INTERVALS[m], getattr(start, m)) for m in SCALED[k]]
-            a = max(1 / SCALE_SPAN, *(iv.lo / v for iv, v in members))
-            b = min(SCALE_SPAN, *(iv.hi / v for iv, v in members))
-            if sigma is not None:
-                half = box_sigmas * min(sigma[m] / getattr(start, m) for m in SCALED[k])
-                a, b = max(a, 1 - half), min(b, 1 + half)
-            lo.append(min(1.0, a))
-            hi.append(max(1.0, b))
-            continue
         iv = PAPER_INTERVALS[k]
         half = iv.width if k in FLYAWAY_RANGES else width * iv.width
         if sigma is not None:
             half = min(half, box_sigmas * sigma[k])
         v = getattr(start, k)
         a, b = (iv.lo, FLYAWAY_RANGES[k][1]) if k in FLYAWAY_RANGES else (iv.lo, iv.hi)
-        if k == "alpha_ply" and "R_ply" not in moved(names):
+        if k == "alpha_ply" and "R_ply" not in names:
             a, b = ply_pitch_range(start)
         lo.append(min(v, max(iv.lo, a, v - half)))  # the start stays inside
         hi.append(max(v, min(iv.hi, b, v + half)))
@@ -246,9 +213,8 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     on_eval(evaluation, loss, best loss) is called after every evaluation (progress bars).
     """
     names = opts.params
-    members = moved(names)
     if sigma is not None:
-        missing = [k for k in members if not sigma.get(k, 0) > 0]
+        missing = [k for k in names if not sigma.get(k, 0) > 0]
         if missing:
             raise UserError(f"no positive prior sigma for {', '.join(missing)} (models "
                             "without validation errors: refine with --no-prior)")
@@ -268,7 +234,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     def penalty(p: YarnParams) -> float:
         if sigma is None:
             return 0.0
-        z = [(getattr(p, k) - getattr(start, k)) / sigma[k] for k in members]
+        z = [(getattr(p, k) - getattr(start, k)) / sigma[k] for k in names]
         return opts.prior_weight * 0.5 * float(np.sum(np.square(z)))
 
     def in_noise_units(loss: float, p: YarnParams) -> float:
@@ -280,11 +246,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     def to_params(u: np.ndarray) -> YarnParams:
         vals = lo + np.clip(u, 0, 1) * span
         vals = np.where(logs, np.exp(vals), vals)
-        changes = {}
-        for k, v in zip(names, vals, strict=True):
-            changes |= ({m: clipped(m, getattr(start, m) * v) for m in SCALED[k]}
-                        if k in SCALED else {k: clipped(k, v)})
-        return start.replace(**changes)
+        return start.replace(**{k: clipped(k, v) for k, v in zip(names, vals, strict=True)})
 
     def f(u: np.ndarray, grad: np.ndarray) -> float:
         p = to_params(u)
@@ -311,7 +273,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
             pass  # the evaluations so far stand; the best of them is re-scored below
 
     t_search = time.perf_counter()
-    u0 = np.array([1.0 if k in SCALED else getattr(start, k) for k in names], dtype=float)
+    u0 = np.array([getattr(start, k) for k in names], dtype=float)
     u0 = (np.where(logs, np.log(u0), u0) - lo) / span
     minimise(opts.algorithm, np.clip(u0, 0, 1), opts.budget, 0.15)
     if opts.polish and len(names) > 1:
@@ -327,7 +289,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     return SearchResult(start=start, best=best, start_loss=scored[0][0], best_loss=best_loss,
                         improved=best is not start, trace=trace, evaluations=len(trace),
                         seconds=time.perf_counter() - t0,
-                        intervals=profile_intervals(members, [(z, p) for *_, p, z in
+                        intervals=profile_intervals(names, [(z, p) for *_, p, z in
                                                             seen.values()], best))
 
 
@@ -372,7 +334,7 @@ def search_stages(objective: Objective, start: YarnParams, opts: SearchOptions =
     current = start
     for i, names in enumerate(opts.stages):
         stage = replace(opts, params=names, later=())
-        earlier = [k for before in opts.stages[:i] for k in moved(before)]
+        earlier = [k for before in opts.stages[:i] for k in before]
         of_stage = (objective.for_stage(names, earlier) if hasattr(objective, "for_stage")
                     else objective)
         own.append(of_stage is objective)

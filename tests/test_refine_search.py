@@ -286,35 +286,3 @@ def test_polish_reaches_a_minimum_between_the_global_searchs_grid_points():
     assert one.evaluations <= 30  # one parameter: DIRECT-L's cells are fine already
     with pytest.raises(UserError, match="polish"):
         SearchOptions(params=NAMES, polish=3)
-
-
-def test_thickness_scales_the_ply_radii_and_helix_together():
-    """``thickness`` searches one factor of R_ply, r_x and r_y: on a loss that sees only
-    the yarn's width 2 (R_ply + r_x), as the core profile does, a start 2.5 times too
-    thick reaches the true width within 2 %, the three keep the start's ratios, each gets
-    an interval, and the stage counts as moving all three (the pitch stage after it is
-    then free of the helix-angle box, as after R_ply)."""
-    truth_width = 2 * (TRUTH.R_ply + TRUTH.r_x)
-    start = TRUTH.replace(R_ply=2.5 * TRUTH.R_ply, r_x=2.5 * TRUTH.r_x, r_y=2.5 * TRUTH.r_y)
-
-    def width_loss(p, seed):
-        return (np.log(2 * (p.R_ply + p.r_x) / truth_width)) ** 2
-
-    opts = SearchOptions(params=("thickness",), later=(("alpha_ply",),), budget=30)
-    assert opts.searched == ["R_ply", "r_x", "r_y", "alpha_ply"]
-    lo, hi = search_box(start, ("thickness",), 0.25)
-    assert lo[0] == pytest.approx(1 / 4)  # SCALE_SPAN; above, the plies' interval ends it
-    assert hi[0] == pytest.approx(min(PAPER_INTERVALS[k].hi / getattr(start, k)
-                                      for k in ("R_ply", "r_x", "r_y")))
-    res = search(width_loss, start, SearchOptions(params=("thickness",), budget=30))
-    width = 2 * (res.best.R_ply + res.best.r_x)
-    assert abs(width / truth_width - 1) < 0.02
-    for k in ("R_ply", "r_y"):
-        assert getattr(res.best, k) / res.best.r_x == pytest.approx(
-            getattr(start, k) / start.r_x, rel=1e-9)
-    assert set(res.intervals) == {"R_ply", "r_x", "r_y"}
-    assert search_box(start, ("thickness", "alpha_ply"), 0.25)[1][1] > 2 * start.alpha_ply
-    with pytest.raises(UserError, match="cannot search"):
-        SearchOptions(params=("thickness", "width"))
-    with pytest.raises(UserError, match="twice"):
-        SearchOptions(params=("thickness", "r_x"))

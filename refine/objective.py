@@ -35,9 +35,12 @@ from ipm.render.scene import Frame
 #: truth with a seed spread small against their rise; the stripes at twice the weight, for
 #: their wide basin (:func:`ipm.refine.stats._axial_spectrum_cdf`).  The other groups add
 #: seed noise for less (the histogram at its former weight 10 made most of the loss's
-#: noise), so they are off.
+#: noise), so they are off.  The silhouette's edges tell an even ply count from an odd one,
+#: which the stripes' period cannot (``python -m ipm.benchmarks.ply_count_loss``,
+#: benchmarks/results/ply_count_loss_cycles_backlit.md; the real photos' ply counts in
+#: docs/real-photos-silhouette).
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
-                   "period": 1.0, "stripes": 2.0, "histogram": 0.0}
+                   "period": 1.0, "stripes": 2.0, "silhouette": 1.0, "histogram": 0.0}
 #: The weight of the ``flyaways`` group in a search that moves flyaway parameters.
 FLYAWAY_WEIGHT = 1.0
 

@@ -18,6 +18,8 @@ centring it vertically, the groups (:data:`GROUPS`) are:
   the periodicity of the ply twist (``alpha_ply / n``) and of the fibers;
 * ``period``, ``stripes``: of the core band along the axis, its autocorrelation and the
   cumulative distribution of its power over log frequency: the ply stripes' period;
+* ``silhouette``: whether the core's two edges move out and in together along the axis
+  (an even ply count) or one out as the other moves in (odd) (:func:`_silhouette`);
 * ``histogram``: a soft intensity histogram of the whole image.
 
 Each statistic is computed on a kornia Gaussian pyramid (``levels``).  Shapes: images are
@@ -32,7 +34,8 @@ import kornia
 import torch
 from torch import Tensor, nn
 
-GROUPS = ("core", "flyaways", "orientation", "spectrum", "period", "stripes", "histogram")
+GROUPS = ("core", "flyaways", "orientation", "spectrum", "period", "stripes", "silhouette",
+          "histogram")
 
 
 def _check_image(x: Tensor, name: str) -> None:
@@ -190,7 +193,76 @@ def _level_stats(dev: Tensor, strips: int, bands: int) -> dict[str, Tensor]:
     # core of contrast 0.5
     return {"core": 2 * median, "flyaways": 10 * fly, "orientation": orientation,
             "spectrum": spectrum, "period": _axial_autocorrelation(band),
-            "stripes": _axial_spectrum_cdf(band)}
+            "stripes": _axial_spectrum_cdf(band), "silhouette": _silhouette(d)}
+
+
+#: The silhouette's edges: where the core's deviation, blurred by SILHOUETTE_BLUR (across,
+#: along the axis) px, falls below this share of the core's contrast; each edge median-
+#: filtered along the axis over SILHOUETTE_MEDIAN px against flyaways that cross it.
+SILHOUETTE_LEVEL = 0.5
+SILHOUETTE_BLUR = (1.0, 2.0)
+SILHOUETTE_MEDIAN = 5
+#: The silhouette statistic's factor: near 1 for two round plies that touch.
+SILHOUETTE_SCALE = 10.0
+
+
+def _edge_distance(x: Tensor, reach: Tensor) -> Tensor:
+    """(B, W): per column of ``x`` (B, R, W), rows ordered outwards from the axis, how many
+    of its first ``reach`` (B,) rows are above SILHOUETTE_LEVEL (soft, by a logistic step of
+    FIBER_SOFTNESS): the edge's distance from the axis.  Counted rather than the run from the
+    axis to the first row below the level, so that a gap between the core's fibers does not
+    cut the edge short; the rows beyond ``reach`` hold the flyaways."""
+    rows = torch.arange(x.shape[1], dtype=x.dtype, device=x.device)
+    within = (rows[None, :] < reach[:, None]).to(x.dtype)[..., None]
+    return (torch.sigmoid((x - SILHOUETTE_LEVEL) / FIBER_SOFTNESS) * within).sum(dim=1)
+
+
+def _detrended(y: Tensor) -> Tensor:
+    """``y`` (B, W) minus its least-squares line along W."""
+    x = torch.linspace(-1, 1, y.shape[-1], dtype=y.dtype, device=y.device)
+    y = y - y.mean(dim=-1, keepdim=True)
+    return y - x * (y * x).sum(-1, keepdim=True) / (x * x).sum()
+
+
+def _silhouette(d: Tensor) -> Tensor:
+    """(B, 1): how the two edges of the core's silhouette in ``d`` (B, H, W), centred, in
+    units of the core's contrast, move along the axis: the covariance of the distances
+    ``u``, ``v`` of the upper and lower edge from the axis (within
+    :data:`FLYAWAY_ROWS_BEYOND` core half-widths, :func:`_edge_distance`), as a signed
+    root over the mean width ``W``, times SILHOUETTE_SCALE: ``sign(C) sqrt(|C|) / W``.
+
+    Why: the core's outline is the union of the plies' outlines.  Two plies winding about
+    the axis are seen side by side (widest) and one behind the other (narrowest) in turn:
+    both edges move out and in together, ``C > 0``.  With three plies (any odd count) a
+    ply standing out on one side leaves a gap on the other: the centreline wanders, one
+    edge moves out as the other moves in, ``C < 0``.  Four plies swing the width less than
+    two.  The stripes and the period see the pitch ``alpha_ply / n`` alone, which a 2-ply
+    and a 3-ply yarn of other pitches share.  Why the covariance, not the correlation: a
+    real yarn's edges also wander apart from each other (uneven plies, hairs at the edge),
+    which a render's do less; such independent wander adds to each edge's variance but not
+    to their covariance.  The image is sheared level by its tilt (:func:`yarn_tilt`) and
+    the edges detrended, so that a tilted or gently bent yarn does not read as a
+    wandering centreline."""
+    h = d.shape[1]
+    x = d[:, None].abs()
+    slope = torch.tan(torch.deg2rad(yarn_tilt(x)))
+    x = kornia.geometry.transform.shear(x, torch.stack([torch.zeros_like(slope), slope], -1))
+    x = centre_rows(x, yarn_centre(x)[1])
+    k = [2 * math.ceil(3 * s) + 1 for s in SILHOUETTE_BLUR]
+    x = kornia.filters.gaussian_blur2d(x, tuple(k), SILHOUETTE_BLUR, border_type="replicate")[:, 0]
+    mid = (h - 1) // 2
+    median = x.median(dim=-1).values
+    reach = FLYAWAY_ROWS_BEYOND * (median.abs() > 0.5).sum(dim=-1) / 2
+    edges = torch.stack([_edge_distance(x[:, : mid + 1].flip(1), reach),
+                         _edge_distance(x[:, mid:], reach)], 1)
+    pad = SILHOUETTE_MEDIAN // 2
+    edges = torch.nn.functional.pad(edges, (pad, pad), mode="replicate")
+    edges = edges.unfold(-1, SILHOUETTE_MEDIAN, 1).median(dim=-1).values
+    u, v = _detrended(edges[:, 0]), _detrended(edges[:, 1])
+    cov = (u * v).mean(dim=-1)
+    width = edges.sum(dim=1).mean(dim=-1).clamp_min(1.0)
+    root = torch.sqrt(cov.abs() + 1e-4) - 1e-2  # finite gradient at 0
+    return (SILHOUETTE_SCALE * torch.sign(cov) * root / width)[:, None]
 
 
 #: Gaussian blur (std in pixels) of the core band before its autocorrelation and spectrum:

@@ -158,3 +158,37 @@ def test_stripes_distance_grows_with_the_period_error():
     errors = [group_distance(a, stripes(0.5, 14.0 * f), "stripes") for f in (1.05, 1.1, 1.2, 1.4)]
     assert errors == sorted(errors) and errors[0] > 0
     assert group_distance(a, stripes(0.5, 2.5), "stripes") > errors[2]
+
+
+def plies(n: int, tilt: float = 0.0, wander: float = 0.0, h: int = 96, w: int = 320,
+          pitch: float = 80.0, ply_radius: float = 7.0, helix_radius: float = 7.0):
+    """The silhouette of ``n`` round plies of ``ply_radius`` px whose axes wind at
+    ``helix_radius`` about the yarn's axis with ``pitch`` px per turn, seen from the side
+    (ply i's centre at height helix_radius cos(2 pi x / pitch + 2 pi i / n)); the yarn
+    tilted by ``tilt`` px per px, and each edge moved by its own smooth random wander of
+    ``wander`` px standard deviation; dark on a bright background."""
+    x = torch.arange(w, dtype=torch.float64)
+    centres = torch.stack([helix_radius * torch.cos(2 * torch.pi * (x / pitch + i / n))
+                           for i in range(n)])
+    g = torch.Generator().manual_seed(n)
+    freqs = (torch.rand(2, 6, 1, generator=g, dtype=torch.float64) + 0.2) * 4 / pitch
+    phases = 2 * torch.pi * torch.rand(2, 6, 1, generator=g, dtype=torch.float64)
+    noise = wander * torch.sin(2 * torch.pi * freqs * x + phases).sum(dim=1) / 3 ** 0.5
+    axis = h / 2 + tilt * (x - w / 2)
+    upper = axis - centres.amax(dim=0) - ply_radius - noise[0]  # rows point down
+    lower = axis - centres.amin(dim=0) + ply_radius + noise[1]
+    y = torch.arange(h, dtype=torch.float64)[:, None]
+    img = 0.8 - 0.5 * ((y > upper) & (y < lower)).double()
+    return img[None, None].expand(1, 3, h, w).contiguous()
+
+
+def test_silhouette_tells_an_even_ply_count_from_an_odd_one():
+    """Two plies: both edges move out and in together; three: one moves out as the other
+    moves in; four plies swing the width less than two.  Neither a tilt of the yarn nor
+    each edge's own wander (of about as much as three plies move them) changes it much."""
+    two, three, four = (float(yarn_statistics(plies(n))["silhouette"][0, 0]) for n in (2, 3, 4))
+    assert two > 0.5 and three < -0.15 and 0 < four < 0.3 * two
+    for n, clean in ((2, two), (3, three)):
+        for changed in (plies(n, tilt=0.05), plies(n, wander=1.5)):
+            assert float(yarn_statistics(changed)["silhouette"][0, 0]) == pytest.approx(
+                clean, abs=0.15), n

@@ -224,6 +224,18 @@ def _detrended(y: Tensor) -> Tensor:
     return y - x * (y * x).sum(-1, keepdim=True) / (x * x).sum()
 
 
+def _levelled(x: Tensor) -> Tensor:
+    """``x`` (B, 1, H, W), its yarn centred on the middle row, sheared about the middle
+    column so that its axis runs level (:func:`yarn_tilt`; bilinear, zero outside)."""
+    b, _, h, w = x.shape
+    slope = -torch.tan(torch.deg2rad(yarn_tilt(x)))  # rows per column, rows pointing down
+    gx = torch.linspace(-1, 1, w, dtype=x.dtype, device=x.device)
+    gy = torch.linspace(-1, 1, h, dtype=x.dtype, device=x.device)
+    shift = (slope * (w - 1) / (h - 1))[:, None, None] * gx[None, None, :]
+    grid = torch.stack([gx.expand(b, h, w), gy[None, :, None] + shift], dim=-1)
+    return torch.nn.functional.grid_sample(x, grid, align_corners=True)
+
+
 def _silhouette(d: Tensor) -> Tensor:
     """(B, 1): how the two edges of the core's silhouette in ``d`` (B, H, W), centred, in
     units of the core's contrast, move along the axis: the covariance of the distances
@@ -244,10 +256,7 @@ def _silhouette(d: Tensor) -> Tensor:
     the edges detrended, so that a tilted or gently bent yarn does not read as a
     wandering centreline."""
     h = d.shape[1]
-    x = d[:, None].abs()
-    slope = torch.tan(torch.deg2rad(yarn_tilt(x)))
-    x = kornia.geometry.transform.shear(x, torch.stack([torch.zeros_like(slope), slope], -1))
-    x = centre_rows(x, yarn_centre(x)[1])
+    x = _levelled(d[:, None].abs())
     k = [2 * math.ceil(3 * s) + 1 for s in SILHOUETTE_BLUR]
     x = kornia.filters.gaussian_blur2d(x, tuple(k), SILHOUETTE_BLUR, border_type="replicate")[:, 0]
     mid = (h - 1) // 2

@@ -24,13 +24,11 @@ pitch, compared with the photo's by those nets' readings (groups ``detail_net_*`
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 import numpy as np
 
-from ipm.benchmarks.machine import markdown_header
-from ipm.io import write_text
+from ipm.benchmarks.machine import markdown_header, publish
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS
 
 STEPS = (-0.1, -0.075, -0.05, -0.025, 0.0, 0.025, 0.05, 0.075, 0.1)
@@ -167,10 +165,7 @@ def main() -> None:
     learned += f", every detail_* group {args.detail:g}" if args.detail else ""
     text += (f"\nFiber seeds averaged per evaluation: {args.seeds_per_eval}; weights of the "
              f"search loss {DEFAULT_WEIGHTS}{learned}.\n")
-    if args.out:
-        write_text(args.out, text)
-        write_text(args.out.rsplit(".", 1)[0] + ".json", json.dumps(results, indent=1))
-    print(text)
+    publish(text, args.out, results)
 
 
 if __name__ == "__main__":

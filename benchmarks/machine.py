@@ -48,10 +48,15 @@ def markdown_header(title: str, command: str, *packages: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def publish(text: str, out: str | None) -> None:
-    """Print a report and, with ``out``, write it there (atomically)."""
+def publish(text: str, out: str | None, data=None) -> None:
+    """Print a report and, with ``out``, write it there (atomically), and ``data`` (JSON-ready)
+    beside it as ``<out stem>.json``."""
+    import json
+
     from ipm.io import write_text
 
     if out:
         write_text(out, text)
+        if data is not None:
+            write_text(out.rsplit(".", 1)[0] + ".json", json.dumps(data, indent=1))
     print(text)

@@ -19,13 +19,11 @@ the truth); every render uses fiber seeds other than the photo's.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 import numpy as np
 
-from ipm.benchmarks.machine import markdown_header
-from ipm.io import write_text
+from ipm.benchmarks.machine import markdown_header, publish
 
 SEEDS = (1, 2)
 
@@ -107,10 +105,7 @@ def main() -> None:
     rows = run(args.data, args.count, [int(n) for n in args.counts.split(",")], args.spp)
     command = "python -m ipm.benchmarks.ply_count_loss " + " ".join(sys.argv[1:])
     text = summary(rows, args.data, command)
-    if args.out:
-        write_text(args.out, text)
-        write_text(args.out.rsplit(".", 1)[0] + ".json", json.dumps(rows, indent=1))
-    print(text)
+    publish(text, args.out, rows)
 
 
 if __name__ == "__main__":

@@ -46,7 +46,10 @@ PROFILE_RISE = 0.5 * float(chi2.ppf(LEVEL, 1))
 #: How many of the nets' most likely ply counts a fit searches with (``ipm.refine.fit``):
 #: one, since the loss sees the stripe period ``alpha_ply / n`` and, given two counts, it
 #: matched the period with the wrong one as often as not (docs/compare-two-ply-counts
-#: against docs/compare).
+#: against docs/compare, before the loss's ``silhouette`` group).  With that group, two
+#: counts and a thickness stage chose the count better on the real photos and on Cycles
+#: renders (docs/real-photos-silhouette, docs/compare-cycles-backlit-silhouette) at twice
+#: the time; not yet measured with the default search, so the default stays one.
 DEFAULT_PLY_COUNTS = 1
 #: The weight of the nets' readings in a fit's loss (:class:`ipm.refine.fit.FitOptions`).
 DEFAULT_LEARNED = 0.0

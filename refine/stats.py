@@ -196,9 +196,9 @@ def _level_stats(dev: Tensor, strips: int, bands: int) -> dict[str, Tensor]:
             "stripes": _axial_spectrum_cdf(band), "silhouette": _silhouette(d)}
 
 
-#: The silhouette's edges: where the core's deviation, blurred by SILHOUETTE_BLUR (across,
-#: along the axis) px, falls below this share of the core's contrast; each edge median-
-#: filtered along the axis over SILHOUETTE_MEDIAN px against flyaways that cross it.
+#: The silhouette: the pixels where the core's deviation, blurred by SILHOUETTE_BLUR
+#: (across, along the axis) px, exceeds this share of the core's contrast; each edge
+#: median-filtered along the axis over SILHOUETTE_MEDIAN px against flyaways that cross it.
 SILHOUETTE_LEVEL = 0.5
 SILHOUETTE_BLUR = (1.0, 2.0)
 SILHOUETTE_MEDIAN = 5
@@ -253,8 +253,7 @@ def _silhouette(d: Tensor) -> Tensor:
     real yarn's edges also wander apart from each other (uneven plies, hairs at the edge),
     which a render's do less; such independent wander adds to each edge's variance but not
     to their covariance.  The image is sheared level by its tilt (:func:`yarn_tilt`) and
-    the edges detrended, so that a tilted or gently bent yarn does not read as a
-    wandering centreline."""
+    the edges detrended, so that a tilted yarn does not read as a wandering centreline."""
     h = d.shape[1]
     x = _levelled(d[:, None].abs())
     k = [2 * math.ceil(3 * s) + 1 for s in SILHOUETTE_BLUR]

@@ -207,6 +207,12 @@ def ply_pitch_range(p: YarnParams) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
+def _logged(values: np.ndarray, logs: np.ndarray) -> np.ndarray:
+    """``values`` with those where ``logs`` is set on a log scale (the others, which may be
+    negative, are not passed to the logarithm)."""
+    return np.where(logs, np.log(np.where(logs, values, 1.0)), values)
+
+
 def search(objective: Objective, start: YarnParams, opts: SearchOptions = SearchOptions(),
            on_eval: Callable[[int, float, float], None] | None = None,
            sigma: dict[str, float] | None = None) -> SearchResult:
@@ -223,7 +229,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
                             "without validation errors: refine with --no-prior)")
     lo, hi = search_box(start, names, opts.width, sigma, opts.box_sigmas)
     logs = np.array([k in LOG_SEARCHED for k in names])
-    lo, hi = np.where(logs, np.log(lo), lo), np.where(logs, np.log(hi), hi)
+    lo, hi = _logged(lo, logs), _logged(hi, logs)
     span = np.where(hi > lo, hi - lo, 1.0)
     t0 = time.perf_counter()
     trace: list[float] = []
@@ -277,7 +283,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
 
     t_search = time.perf_counter()
     u0 = np.array([getattr(start, k) for k in names], dtype=float)
-    u0 = (np.where(logs, np.log(u0), u0) - lo) / span
+    u0 = (_logged(u0, logs) - lo) / span
     minimise(opts.algorithm, np.clip(u0, 0, 1), opts.budget, 0.15)
     if opts.polish and len(names) > 1:
         u_best = min(seen, key=lambda u: seen[u][0])

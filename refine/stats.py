@@ -138,9 +138,14 @@ def _beyond_core(median: Tensor) -> Tensor:
     :data:`FLYAWAY_ROWS_BEYOND` times its core's half-width (the rows where the per-row
     ``median`` (B, H), in units of the core's contrast, is above one half, counted)."""
     h = median.shape[-1]
-    half_width = (median.abs() > 0.5).sum(dim=-1, keepdim=True) / 2
     rows = torch.arange(h, dtype=median.dtype, device=median.device) - (h - 1) / 2
-    return rows.abs() > FLYAWAY_ROWS_BEYOND * half_width
+    return rows.abs() > FLYAWAY_ROWS_BEYOND * _half_width(median)[:, None]
+
+
+def _half_width(median: Tensor) -> Tensor:
+    """(B,) the core's half-width in rows: half the rows where the per-row ``median`` (B, H),
+    in units of the core's contrast, is above one half."""
+    return (median.abs() > 0.5).sum(dim=-1) / 2
 
 
 #: A pixel is fiber where its deviation exceeds this share of the core's contrast (soft, by a
@@ -259,8 +264,7 @@ def _silhouette(d: Tensor) -> Tensor:
     k = [2 * math.ceil(3 * s) + 1 for s in SILHOUETTE_BLUR]
     x = kornia.filters.gaussian_blur2d(x, tuple(k), SILHOUETTE_BLUR, border_type="replicate")[:, 0]
     mid = (h - 1) // 2
-    median = x.median(dim=-1).values
-    reach = FLYAWAY_ROWS_BEYOND * (median.abs() > 0.5).sum(dim=-1) / 2
+    reach = FLYAWAY_ROWS_BEYOND * _half_width(x.median(dim=-1).values)
     edges = torch.stack([_edge_distance(x[:, : mid + 1].flip(1), reach),
                          _edge_distance(x[:, mid:], reach)], 1)
     pad = SILHOUETTE_MEDIAN // 2

@@ -206,6 +206,10 @@ def generate(
                                             "the backdrop's strength, defocus, vignetting, "
                                             "tone curve and JPEG compression per sample, so "
                                             "that nets do not learn one look")] = False,
+    vary_material: Annotated[bool, typer.Option("--vary-material", help="also vary how much "
+                                                "light a fiber stops (backlit) and the room's "
+                                                "fill light per sample, so that nets do not "
+                                                "learn one fiber material")] = False,
     view: Annotated[tuple[int, int] | None, typer.Option(help="render only a WIDTH HEIGHT "
                                                          "px window at the scale's pitch, "
                                                          "centred on the yarn: detail "
@@ -233,12 +237,14 @@ def generate(
     from ipm.render.scene import setup_options
 
     spp_min, spp_max = spp_range(spp) if spp is not None else (DEFAULT_SPP, None)
-    if vary_look and not photometric:
-        raise UserError("--vary-look varies the photometric capture; drop --no-photometric")
+    if (vary_look or vary_material) and not photometric:
+        flag = "--vary-look" if vary_look else "--vary-material"
+        raise UserError(f"{flag} varies the photometric capture; drop --no-photometric")
     opts = GenerateOptions(count=count, seed=seed, split=split,
                            scale=DEFAULT_SCALE if scale is None else scale,
                            spp=spp_min, spp_max=spp_max,
-                           photometric=(PhotometricRanges(look=vary_look) if photometric
+                           photometric=(PhotometricRanges(look=vary_look, material=vary_material)
+                                        if photometric
                                         else NO_VARIATION),
                            scene=setup_options(setup), view=view)
     with progress_bar("{task.fields[rate]}") as bar:

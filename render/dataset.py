@@ -69,7 +69,7 @@ def spp_range(text: str) -> tuple[int, int | None]:
 
 #: Settings added after datasets were made without them, and the value they had implicitly.
 _ADDED_LATER = {"scene": {"setup": "frontlit", "panel": 0.6, "opacity": 0.5},
-                "photometric": {"look": False}}
+                "photometric": {"look": False, "material": False}}
 
 
 @dataclass(frozen=True)

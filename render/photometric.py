@@ -8,7 +8,9 @@ places the fibers with them); the lights' and the backdrop's strength on the sce
 vignetting and sensor noise on the linear image (:func:`apply_to_image`); a camera's tone
 curve and JPEG compression on the encoded 8-bit image (:func:`encode`).  The later
 variations (lights, backdrop, defocus, vignetting, tone, JPEG) are off unless a dataset asks
-for them (``ipm generate --vary-look``), so datasets made before them stay as they were.
+for them (``ipm generate --vary-look``), and the fibers' material (how much light a fiber
+stops, the room's fill light: ``--vary-material``) unless it asks for that, so datasets made
+before them stay as they were.
 """
 
 from __future__ import annotations
@@ -30,7 +32,10 @@ class Photometric:
     exposure_stops: image gain 2**stops.  white_balance: (3,) per-channel gains (mean 1).
     shift_mm: (dx, dy) of the yarn in the image plane (x right, y up).  rotation_deg: of the
     yarn about the view direction.  noise: (a, b) of Poisson-Gaussian sensor noise, variance
-    a * x + b on the linear image x.  noise_seed: seed of that noise.
+    a * x + b on the linear image x.  noise_seed: seed of that noise.  light_gain,
+    backdrop_gain: the lamps' and the card's strength (:func:`ipm.render.scene.scaled_options`).
+    fiber_opacity: the share of the light a fiber stops in the backlit setup (0: the scene's
+    own, :attr:`ipm.render.scene.SceneOptions.opacity`).  room_gain: the room's fill light.
     """
 
     exposure_stops: float = 0.0
@@ -45,6 +50,8 @@ class Photometric:
     vignetting: float = 0.0
     gamma: float = 1.0
     jpeg_quality: int = 0
+    fiber_opacity: float = 0.0
+    room_gain: float = 1.0
 
     def to_dict(self) -> dict[str, Any]:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
@@ -68,6 +75,7 @@ class PhotometricRanges:
     shift_mm: +-mm in x and y.  rotation_deg: +-degrees.  noise_a, noise_b: upper bounds of
     the Poisson (gain) and Gaussian (read) noise terms, drawn in [0, bound].  look: whether
     to vary the rest as :data:`LOOK` says (lights, backdrop, defocus, vignetting, tone, JPEG).
+    material: whether to vary the fibers' material as :data:`MATERIAL` says.
     """
 
     exposure_stops: float = 0.3
@@ -77,6 +85,7 @@ class PhotometricRanges:
     noise_a: float = 2e-3
     noise_b: float = 1e-5
     look: bool = False
+    material: bool = False
 
     def __post_init__(self) -> None:
         values = {"exposure_stops": self.exposure_stops, "white_balance": self.white_balance,
@@ -100,11 +109,14 @@ class PhotometricRanges:
             rotation_deg=float(self.rotation_deg * u[5]),
             noise=(float(noise[0]), float(noise[1])),
             noise_seed=int(rng.integers(0, 2**31 - 1)))
-        if not self.look:  # drawn after the rest, which stays as it was without it
-            return drawn
-        look = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in LOOK.items()}
-        look["jpeg_quality"] = int(round(look["jpeg_quality"])) if rng.random() < 0.5 else 0
-        return replace(drawn, **look)
+        if self.look:  # drawn after the rest, which stays as it was without it
+            look = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in LOOK.items()}
+            look["jpeg_quality"] = int(round(look["jpeg_quality"])) if rng.random() < 0.5 else 0
+            drawn = replace(drawn, **look)
+        if self.material:  # drawn last, likewise
+            drawn = replace(drawn, **{k: float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+                                      for k, (lo, hi) in MATERIAL.items()})
+        return drawn
 
 
 NO_VARIATION = PhotometricRanges(0.0, 0.0, (0.0, 0.0), 0.0, 0.0, 0.0)
@@ -112,6 +124,13 @@ NO_VARIATION = PhotometricRanges(0.0, 0.0, (0.0, 0.0), 0.0, 0.0, 0.0)
 LOOK: dict[str, tuple[float, float]] = {
     "light_gain": (0.6, 1.6), "backdrop_gain": (0.3, 3.0), "blur_mm": (0.0, 0.04),
     "vignetting": (0.0, 0.3), "gamma": (0.8, 1.25), "jpeg_quality": (60, 95)}
+#: The ranges of the material's variations (log-uniform).  Why: a renderer or a real fiber
+#: that lets more light through shows a grey core with faint ply boundaries, and nets trained
+#: on one opacity (0.5) read such a yarn as fewer, flatter plies (on Blender Cycles' hair
+#: shader, benchmarks/results/nets_accuracy_cycles_backlit.md); a fill light in front greys
+#: the silhouette too.
+MATERIAL: dict[str, tuple[float, float]] = {"fiber_opacity": (0.25, 0.9),
+                                           "room_gain": (0.3, 4.0)}
 
 
 def apply_to_image(image: np.ndarray, ph: Photometric, pixel_size_mm: float = 0.04

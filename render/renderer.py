@@ -119,12 +119,12 @@ class Renderer:
 
     def render_fibers(self, fibers: FiberSet, color: tuple[float, float, float], scale: float,
                       spp: int, render_seed: int = 0, to_world: np.ndarray | None = None,
-                      frame: Frame | None = None, gains: tuple[float, float] = (1.0, 1.0)
+                      frame: Frame | None = None, gains: tuple[float, ...] = (1.0, 1.0)
                       ) -> np.ndarray:
         """Linear RGB image (H, W, 3) float32 of ``fibers`` (generator frame) with albedo
         ``color``, placed by ``to_world`` (default: :func:`yarn_to_world` centred), in the
-        yarn frame at ``scale`` or in ``frame``, its lamps and card scaled by ``gains``
-        (:func:`ipm.render.scene.scaled_options`)."""
+        yarn frame at ``scale`` or in ``frame``, its lamps, card, fiber opacity and room light
+        as ``gains`` say (the arguments of :func:`ipm.render.scene.scaled_options`)."""
         if spp < 1:
             raise ValueError(f"spp must be >= 1, got {spp}")
         frame_size(scale)  # validates the scale
@@ -142,7 +142,8 @@ class Renderer:
             params[albedo_parameter(self.options)] = self.mi.Color3f(
                 *fiber_albedo(color, self.options))
             for key, value in look_parameters(look).items():  # every time: scenes are kept
-                params[key] = self.mi.Color3f(value, value, value)
+                params[key] = (self.mi.Float(value) if key.endswith("opacity.value")
+                               else self.mi.Color3f(value, value, value))
             params.update()
         image = self.mi.render(scene, spp=spp, seed=render_seed)
         return np.array(image, dtype=np.float32)[..., :3]
@@ -158,7 +159,8 @@ class Renderer:
         to_world = yarn_to_world(photometric.shift_mm, photometric.rotation_deg)
         image = self.render_fibers(generate(params, seed), params.color, scale, spp,
                                    render_seed, to_world, frame,
-                                   gains=(photometric.light_gain, photometric.backdrop_gain))
+                                   gains=(photometric.light_gain, photometric.backdrop_gain,
+                                          photometric.fiber_opacity, photometric.room_gain))
         if photometric != NOMINAL:
             pitch = frame.pixel_size_mm if frame is not None else pixel_size_mm(scale)
             image = apply_to_image(image, photometric, pitch)

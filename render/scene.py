@@ -153,23 +153,29 @@ SETUPS: dict[str, SceneOptions] = {
 }
 
 
-def scaled_options(opts: SceneOptions, light_gain: float = 1.0, backdrop_gain: float = 1.0
-                   ) -> SceneOptions:
+def scaled_options(opts: SceneOptions, light_gain: float = 1.0, backdrop_gain: float = 1.0,
+                   fiber_opacity: float = 0.0, room_gain: float = 1.0) -> SceneOptions:
     """``opts`` with its lamps (soft boxes or panel) ``light_gain`` and its card's albedo
-    ``backdrop_gain`` times as strong: a capture's lights and backdrop
+    ``backdrop_gain`` times as strong, its room light ``room_gain`` times, and its fibers'
+    opacity ``fiber_opacity`` (0: as it is): a capture's lights, backdrop and material
     (:class:`ipm.render.photometric.Photometric`)."""
     return replace(opts, key_light=opts.key_light * light_gain, panel=opts.panel * light_gain,
-                   backdrop=min(1.0, opts.backdrop * backdrop_gain))
+                   backdrop=min(1.0, opts.backdrop * backdrop_gain),
+                   room_light=opts.room_light * room_gain,
+                   opacity=fiber_opacity if fiber_opacity > 0 else opts.opacity)
 
 
 def look_parameters(opts: SceneOptions) -> dict[str, float]:
-    """The ``mi.traverse`` keys and grey values of ``opts``' lamps and card, so that a
-    loaded scene takes another :func:`scaled_options` without loading anew."""
+    """The ``mi.traverse`` keys and values of ``opts``' lamps, card, room light and (backlit)
+    fiber opacity, so that a loaded scene takes another :func:`scaled_options` without
+    loading anew.  Grey colours but ``yarn.bsdf.opacity.value``, a float."""
+    room = {"room.radiance.value": opts.room_light}
     if opts.setup == "backlit":
-        return {"panel.emitter.radiance.value": opts.panel}
+        return {"panel.emitter.radiance.value": opts.panel,
+                "yarn.bsdf.opacity.value": opts.opacity, **room}
     return {"backdrop.bsdf.reflectance.value": opts.backdrop,
             **{f"{name}.emitter.radiance.value": share * opts.key_light
-               for name, _, _, share in SOFT_BOXES}}
+               for name, _, _, share in SOFT_BOXES}, **room}
 
 
 def setup_options(name: str) -> SceneOptions:

@@ -8,7 +8,8 @@
 #   SETUP=backlit bash scripts/make_nets.sh data-backlit runs-backlit nets/models-backlit
 #
 # SETUP=backlit makes the backlit nets: renders in the backlit setup with a varied look
-# (`ipm generate --vary-look`: lamps, backdrop, defocus, vignetting, tone, JPEG), and every
+# (`ipm generate --vary-look`: lamps, backdrop, defocus, vignetting, tone, JPEG) and fiber
+# material (`--vary-material`: how much light a fiber stops, the room's fill), and every
 # training crop in another look (`ipm train --look`), since real backlit captures differ in
 # all of these.
 #
@@ -34,7 +35,7 @@ mkdir -p "$DATA" "$RUNS"
 if [ "$SETUP" = frontlit ]; then
   look=(); augment=()
 else
-  look=(--setup "$SETUP" --vary-look); augment=(--setup "$SETUP" --look)
+  look=(--setup "$SETUP" --vary-look --vary-material); augment=(--setup "$SETUP" --look)
 fi
 ipm generate --out "$DATA/train" --count 2000 --seed 0 --spp 4-24 "${look[@]}"
 ipm generate --out "$DATA/val" --count 200 --seed 1 --split val --spp 4-24 "${look[@]}"

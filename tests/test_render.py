@@ -352,6 +352,46 @@ def test_look_variations_are_off_unless_asked_and_leave_the_other_draws_alone():
         "photometric"]["look"] is True
 
 
+def test_material_variations_are_drawn_last_and_off_unless_asked():
+    """--vary-material draws after --vary-look, so the look of a dataset made without it
+    stays; its values lie in their ranges and its setting is recorded only when on."""
+    from ipm.render.dataset import GenerateOptions
+    from ipm.render.photometric import MATERIAL
+
+    look = PhotometricRanges(look=True).draw(np.random.default_rng(4))
+    both = PhotometricRanges(look=True, material=True).draw(np.random.default_rng(4))
+    assert (look.fiber_opacity, look.room_gain) == (0.0, 1.0)
+    assert replace(both, **{k: getattr(look, k) for k in MATERIAL}) == look
+    for k, (lo, hi) in MATERIAL.items():
+        assert lo <= getattr(both, k) <= hi, k
+    assert "material" not in GenerateOptions(count=1).settings()["photometric"]
+    assert GenerateOptions(count=1, photometric=PhotometricRanges(material=True)).settings()[
+        "photometric"]["material"] is True
+
+
+@pytest.mark.slow
+def test_fiber_opacity_sets_what_one_fiber_lets_through_and_the_scene_resets():
+    """A fiber of opacity o in front of the panel passes 1 - o of its light, whatever the
+    scene's own opacity; the room light greys it; the next render is the scene's again."""
+    from ipm.render.scene import setup_options
+
+    opts = setup_options("backlit")
+    r = Renderer(options=opts)
+    fibers = _straight_fibers([0.0], 0.05)
+
+    def through(**kw) -> float:
+        gains = (1.0, 1.0, kw.get("opacity", 0.0), kw.get("room", 1.0))
+        image = r.render_fibers(fibers, (0.3, 0.3, 0.3), 0.5, spp=16, gains=gains).mean(-1)
+        h = image.shape[0]
+        return float(image[h // 2 - 1:h // 2 + 1, 50:-50].mean() / np.median(image[:10]))
+
+    nominal = through()
+    for o in (0.25, 0.85):
+        assert 1 - o <= through(opacity=o) <= 1 - o + 0.12, o
+    assert through(room=4.0) > nominal + 0.02
+    assert through() == pytest.approx(nominal, abs=1e-6)
+
+
 def test_look_variations_act_on_scene_and_image(renderer):
     """Lamps 1.5x brighten the yarn about 1.5x, a card 3x as light lifts the background
     about 3x; vignetting darkens the corners by its amount, defocus removes fine detail, a

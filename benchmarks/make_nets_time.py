@@ -67,10 +67,10 @@ RECIPE_DATA = {
     "detail window": Data(("--scale", "1", "--view", "320", "320", "--spp", "4-24"),
                           {"frontlit": 4000 + 200}),
     "whole frame at 0.01 mm": Data(("--scale", "1"), {"frontlit": 200}),
-    "backlit frame, varied look": Data(("--setup", "backlit", "--vary-look", "--spp", "4-24"),
-                                       {"backlit": 2000 + 200}),
-    "backlit test frame, varied look": Data(("--setup", "backlit", "--vary-look"),
-                                            {"backlit": 200}),
+    "backlit frame, varied look": Data(("--setup", "backlit", "--vary-look", "--vary-material",
+                                        "--spp", "4-24"), {"backlit": 2000 + 200}),
+    "backlit test frame, varied look": Data(("--setup", "backlit", "--vary-look",
+                                             "--vary-material"), {"backlit": 200}),
 }
 #: The training images of each dataset kind.
 TRAIN_IMAGES = {"frame": 2000, "detail window": 4000, "backlit frame, varied look": 2000}

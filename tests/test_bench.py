@@ -178,6 +178,9 @@ def test_make_nets_time_recipe_is_the_scripts():
     assert frontlit == sum(counts) and backlit == sum(counts[:3])
     assert TRAIN_IMAGES == {"frame": counts[0], "detail window": counts[3],
                             "backlit frame, varied look": counts[0]}
+    look = re.search(r'look=\(--setup "\$SETUP" ([^)]*)\)', script).group(1).split()
+    for kind in ("backlit frame, varied look", "backlit test frame, varied look"):
+        assert set(look) <= set(RECIPE_DATA[kind].options), kind
     trained = {(tuple(n.split(",")), int(e)) for n, e in
                re.findall(r"--nets (\S+) --epochs (\d+)", script)}
     assert {(t.nets, t.epochs) for t in RECIPE["frontlit"]} == trained

@@ -125,10 +125,11 @@ LOOK: dict[str, tuple[float, float]] = {
     "light_gain": (0.6, 1.6), "backdrop_gain": (0.3, 3.0), "blur_mm": (0.0, 0.04),
     "vignetting": (0.0, 0.3), "gamma": (0.8, 1.25), "jpeg_quality": (60, 95)}
 #: The ranges of the material's variations (log-uniform).  Why: a renderer or a real fiber
-#: that lets more light through shows a grey core with faint ply boundaries, and nets trained
-#: on one opacity (0.5) read such a yarn as fewer, flatter plies (on Blender Cycles' hair
-#: shader, benchmarks/results/nets_accuracy_cycles_backlit.md); a fill light in front greys
-#: the silhouette too.
+#: that lets light through otherwise than the scene's fibers (opacity 0.5) shows another
+#: grey core and other ply boundaries, and nets trained on the one opacity read Blender
+#: Cycles' translucent hair as fewer plies (benchmarks/results/nets_accuracy_cycles_backlit.md,
+#: before and after, in the model card nets/models-backlit/README.md); a fill light in front
+#: greys the silhouette too.
 MATERIAL: dict[str, tuple[float, float]] = {"fiber_opacity": (0.25, 0.9),
                                            "room_gain": (0.3, 4.0)}
 

@@ -250,10 +250,12 @@ def _prepare(folder: Path, opts: GenerateOptions) -> dict[int, Record]:
     larger run) are kept: a rerun with a smaller count never deletes what was made."""
     if folder.exists() and not folder.is_dir():
         raise UserError(f"{folder} exists and is not a folder")
-    parent = folder.parent
-    if not folder.exists() and not (parent.is_dir() and os.access(parent, os.W_OK)):
-        raise UserError(f"cannot create {folder}: {parent} is missing or not writable")
-    folder.mkdir(exist_ok=True)
+    if not folder.exists():  # its missing parents too, as `mkdir -p`
+        try:
+            folder.mkdir(parents=True)
+        except OSError:
+            raise UserError(f"cannot create {folder}: {folder.parent} is missing or not "
+                            "writable") from None
     if not os.access(folder, os.W_OK):
         raise UserError(f"output folder {folder} is not writable")
     settings_path = folder / SETTINGS

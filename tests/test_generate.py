@@ -296,3 +296,15 @@ def test_ctrl_c_is_one_line_and_exit_130(tmp_path):
     for rec in read_manifest(tmp_path / "ds"):  # what was made is listed and whole
         with Image.open(rec.image) as img:
             img.load()
+
+
+def test_a_dataset_folder_is_made_with_its_missing_parents(tmp_path):
+    """`ipm generate --out new/dir/ds` makes the folders, as `mkdir -p`; a parent that is a
+    file is still refused in one line."""
+    from ipm.render.dataset import GenerateOptions, _prepare
+
+    assert _prepare(tmp_path / "new" / "dir" / "ds", GenerateOptions(count=1)) == {}
+    assert (tmp_path / "new" / "dir" / "ds").is_dir()
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(UserError, match="missing or not writable"):
+        _prepare(tmp_path / "file" / "ds", GenerateOptions(count=1))

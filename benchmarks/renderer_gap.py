@@ -57,11 +57,11 @@ def main() -> None:
     ens = Ensemble.load(args.models, setup=setup)
     renderer = Renderer(options=setup_options(setup))
     scale = PIXEL_SIZE_MM / records[0].pixel_size_mm  # the set's pitch
+    width = frame_size(scale)[0]
     kinds = ("Cycles", "ipm", "Cycles, ipm's tone", "ipm, Cycles' tone")
     pred: dict[str, list] = {k: [] for k in kinds}
     for i, rec in enumerate(records):
         cycles = rec.photo().image
-        width = frame_size(scale)[0]
         linear = renderer.render(rec.params, rec.seed, scale, SPP)
         left = (width - cycles.shape[1]) // 2
         ipm = np.clip(linear_to_srgb(linear[:, left:left + cycles.shape[1]]), 0, 1)

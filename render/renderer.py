@@ -119,20 +119,23 @@ class Renderer:
 
     def render_fibers(self, fibers: FiberSet, color: tuple[float, float, float], scale: float,
                       spp: int, render_seed: int = 0, to_world: np.ndarray | None = None,
-                      frame: Frame | None = None, gains: tuple[float, ...] = (1.0, 1.0)
+                      frame: Frame | None = None, look: Photometric = NOMINAL
                       ) -> np.ndarray:
         """Linear RGB image (H, W, 3) float32 of ``fibers`` (generator frame) with albedo
         ``color``, placed by ``to_world`` (default: :func:`yarn_to_world` centred), in the
         yarn frame at ``scale`` or in ``frame``, its lamps, card, fiber opacity and room light
-        as ``gains`` say (the arguments of :func:`ipm.render.scene.scaled_options`)."""
+        as the capture ``look`` says (:func:`ipm.render.scene.scaled_options`; the image
+        variations of ``look`` are :meth:`render`'s)."""
         if spp < 1:
             raise ValueError(f"spp must be >= 1, got {spp}")
         frame_size(scale)  # validates the scale
         to_world = yarn_to_world() if to_world is None else to_world
-        look = scaled_options(self.options, *gains)
+        options = scaled_options(self.options, look.light_gain, look.backdrop_gain,
+                                 look.fiber_opacity, look.room_gain)
         if self.variant.startswith("scalar"):
             # no kernels to keep, and scalar buffers cannot change size: load the yarn anew
-            scene = self._load(scale, fibers.mitsuba_curve_text(), color, to_world, frame, look)
+            scene = self._load(scale, fibers.mitsuba_curve_text(), color, to_world, frame,
+                               options)
         else:
             scene, params = self._scene(scale, frame)
             points, segments = world_curves(fibers, to_world)
@@ -141,9 +144,8 @@ class Renderer:
             params["yarn.control_point_count"] = len(points)
             params[albedo_parameter(self.options)] = self.mi.Color3f(
                 *fiber_albedo(color, self.options))
-            for key, value in look_parameters(look).items():  # every time: scenes are kept
-                params[key] = (self.mi.Float(value) if key.endswith("opacity.value")
-                               else self.mi.Color3f(value, value, value))
+            for key, value in look_parameters(options).items():  # every time: scenes are kept
+                params[key] = type(params[key])(value)  # a grey colour or a float
             params.update()
         image = self.mi.render(scene, spp=spp, seed=render_seed)
         return np.array(image, dtype=np.float32)[..., :3]
@@ -158,9 +160,7 @@ class Renderer:
         three)."""
         to_world = yarn_to_world(photometric.shift_mm, photometric.rotation_deg)
         image = self.render_fibers(generate(params, seed), params.color, scale, spp,
-                                   render_seed, to_world, frame,
-                                   gains=(photometric.light_gain, photometric.backdrop_gain,
-                                          photometric.fiber_opacity, photometric.room_gain))
+                                   render_seed, to_world, frame, look=photometric)
         if photometric != NOMINAL:
             pitch = frame.pixel_size_mm if frame is not None else pixel_size_mm(scale)
             image = apply_to_image(image, photometric, pitch)

@@ -168,7 +168,7 @@ def scaled_options(opts: SceneOptions, light_gain: float = 1.0, backdrop_gain: f
 def look_parameters(opts: SceneOptions) -> dict[str, float]:
     """The ``mi.traverse`` keys and values of ``opts``' lamps, card, room light and (backlit)
     fiber opacity, so that a loaded scene takes another :func:`scaled_options` without
-    loading anew.  Grey colours but ``yarn.bsdf.opacity.value``, a float."""
+    loading anew."""
     room = {"room.radiance.value": opts.room_light}
     if opts.setup == "backlit":
         return {"panel.emitter.radiance.value": opts.panel,

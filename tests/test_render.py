@@ -379,16 +379,16 @@ def test_fiber_opacity_sets_what_one_fiber_lets_through_and_the_scene_resets():
     r = Renderer(options=opts)
     fibers = _straight_fibers([0.0], 0.05)
 
-    def through(**kw) -> float:
-        gains = (1.0, 1.0, kw.get("opacity", 0.0), kw.get("room", 1.0))
-        image = r.render_fibers(fibers, (0.3, 0.3, 0.3), 0.5, spp=16, gains=gains).mean(-1)
+    def through(**look) -> float:
+        image = r.render_fibers(fibers, (0.3, 0.3, 0.3), 0.5, spp=16,
+                                look=Photometric(**look)).mean(-1)
         h = image.shape[0]
         return float(image[h // 2 - 1:h // 2 + 1, 50:-50].mean() / np.median(image[:10]))
 
     nominal = through()
     for o in (0.25, 0.85):
-        assert 1 - o <= through(opacity=o) <= 1 - o + 0.12, o
-    assert through(room=4.0) > nominal + 0.02
+        assert 1 - o <= through(fiber_opacity=o) <= 1 - o + 0.12, o
+    assert through(room_gain=4.0) > nominal + 0.02
     assert through() == pytest.approx(nominal, abs=1e-6)
 
 

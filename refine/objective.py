@@ -40,7 +40,8 @@ from ipm.render.scene import Frame
 #: benchmarks/results/ply_count_loss_cycles_backlit.md; the real photos' ply counts in
 #: docs/real-photos-silhouette).
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
-                   "period": 1.0, "stripes": 2.0, "silhouette": 1.0, "histogram": 0.0}
+                   "period": 1.0, "stripes": 2.0, "silhouette": 1.0, "contour": 0.25,
+                   "histogram": 0.0}
 #: The weight of the ``flyaways`` group in a search that moves flyaway parameters.
 FLYAWAY_WEIGHT = 1.0
 
@@ -220,7 +221,7 @@ class RenderObjective:
         if names and all(k in FLYAWAY_RANGES for k in names):
             groups = {"flyaways": FLYAWAY_WEIGHT}
         elif tuple(names) == ("alpha_ply",) and "R_ply" in earlier:
-            groups = {k: self.weights[k] for k in ("period", "stripes")}
+            groups = {k: self.weights[k] for k in ("period", "stripes", "contour")}
         else:
             return self
         return partial(self, weights={k: groups.get(k, 0.0) for k in self.photo_stats})

@@ -20,6 +20,8 @@ centring it vertically, the groups (:data:`GROUPS`) are:
   cumulative distribution of its power over log frequency: the ply stripes' period;
 * ``silhouette``: whether the core's two edges move out and in together along the axis
   (an even ply count) or one out as the other moves in (odd) (:func:`_silhouette`);
+* ``contour``: the autocorrelation of those edges along the axis: the plies' period
+  ``alpha_ply / n`` read off the core's outline (:func:`_contour`);
 * ``histogram``: a soft intensity histogram of the whole image.
 
 Each statistic is computed on a kornia Gaussian pyramid (``levels``).  Shapes: images are
@@ -35,7 +37,7 @@ import torch
 from torch import Tensor, nn
 
 GROUPS = ("core", "flyaways", "orientation", "spectrum", "period", "stripes", "silhouette",
-          "histogram")
+          "contour", "histogram")
 
 
 def _check_image(x: Tensor, name: str) -> None:
@@ -174,6 +176,7 @@ def _level_stats(dev: Tensor, strips: int, bands: int) -> dict[str, Tensor]:
     # the median over the axis ignores sparse flyaways: the core's occupancy
     median = d.median(dim=-1).values
     fly = torch.where(_beyond_core(median), _crossings(d), 0.0)
+    edges = _core_edges(d)
 
     g = kornia.filters.spatial_gradient(dev)[:, 0]  # (B, 2, H, W)
     gx, gy = g[:, 0], g[:, 1]
@@ -198,7 +201,8 @@ def _level_stats(dev: Tensor, strips: int, bands: int) -> dict[str, Tensor]:
     # core of contrast 0.5
     return {"core": 2 * median, "flyaways": 10 * fly, "orientation": orientation,
             "spectrum": spectrum, "period": _axial_autocorrelation(band),
-            "stripes": _axial_spectrum_cdf(band), "silhouette": _silhouette(d)}
+            "stripes": _axial_spectrum_cdf(band), "silhouette": _silhouette(edges),
+            "contour": _contour(edges)}
 
 
 #: The silhouette: the pixels where the core's deviation, blurred by SILHOUETTE_BLUR
@@ -241,24 +245,13 @@ def _levelled(x: Tensor) -> Tensor:
     return torch.nn.functional.grid_sample(x, grid, align_corners=True)
 
 
-def _silhouette(d: Tensor) -> Tensor:
-    """(B, 1): how the two edges of the core's silhouette in ``d`` (B, H, W), centred, in
-    units of the core's contrast, move along the axis: the covariance of the distances
-    ``u``, ``v`` of the upper and lower edge from the axis (within
-    :data:`FLYAWAY_ROWS_BEYOND` core half-widths, :func:`_edge_distance`), as a signed
-    root over the mean width ``W``, times SILHOUETTE_SCALE: ``sign(C) sqrt(|C|) / W``.
-
-    Why: the core's outline is the union of the plies' outlines.  Two plies winding about
-    the axis are seen side by side (widest) and one behind the other (narrowest) in turn:
-    both edges move out and in together, ``C > 0``.  With three plies (any odd count) a
-    ply standing out on one side leaves a gap on the other: the centreline wanders, one
-    edge moves out as the other moves in, ``C < 0``.  Four plies swing the width less than
-    two.  The stripes and the period see the pitch ``alpha_ply / n`` alone, which a 2-ply
-    and a 3-ply yarn of other pitches share.  Why the covariance, not the correlation: a
-    real yarn's edges also wander apart from each other (uneven plies, hairs at the edge),
-    which a render's do less; such independent wander adds to each edge's variance but not
-    to their covariance.  The image is sheared level by its tilt (:func:`yarn_tilt`) and
-    the edges detrended, so that a tilted yarn does not read as a wandering centreline."""
+def _core_edges(d: Tensor) -> Tensor:
+    """(B, 2, W): the distances of the upper and lower edge of the core's silhouette from
+    the axis along it, of ``d`` (B, H, W), centred, in units of the core's contrast (within
+    :data:`FLYAWAY_ROWS_BEYOND` core half-widths, :func:`_edge_distance`).  The image is
+    sheared level by its tilt (:func:`yarn_tilt`), blurred by SILHOUETTE_BLUR, and each
+    edge median-filtered along the axis over SILHOUETTE_MEDIAN px against flyaways that
+    cross it."""
     h = d.shape[1]
     x = _levelled(d[:, None].abs())
     k = [2 * math.ceil(3 * s) + 1 for s in SILHOUETTE_BLUR]
@@ -269,12 +262,56 @@ def _silhouette(d: Tensor) -> Tensor:
                          _edge_distance(x[:, mid:], reach)], 1)
     pad = SILHOUETTE_MEDIAN // 2
     edges = torch.nn.functional.pad(edges, (pad, pad), mode="replicate")
-    edges = edges.unfold(-1, SILHOUETTE_MEDIAN, 1).median(dim=-1).values
+    return edges.unfold(-1, SILHOUETTE_MEDIAN, 1).median(dim=-1).values
+
+
+def _silhouette(edges: Tensor) -> Tensor:
+    """(B, 1): how the two edges of the core's silhouette (:func:`_core_edges`, (B, 2, W))
+    move along the axis: the covariance of the distances ``u``, ``v`` of the upper and
+    lower edge from the axis, as a signed root over the mean width ``W``, times
+    SILHOUETTE_SCALE: ``sign(C) sqrt(|C|) / W``.
+
+    Why: the core's outline is the union of the plies' outlines.  Two plies winding about
+    the axis are seen side by side (widest) and one behind the other (narrowest) in turn:
+    both edges move out and in together, ``C > 0``.  With three plies (any odd count) a
+    ply standing out on one side leaves a gap on the other: the centreline wanders, one
+    edge moves out as the other moves in, ``C < 0``.  Four plies swing the width less than
+    two.  The stripes and the period see the pitch ``alpha_ply / n`` alone, which a 2-ply
+    and a 3-ply yarn of other pitches share.  Why the covariance, not the correlation: a
+    real yarn's edges also wander apart from each other (uneven plies, hairs at the edge),
+    which a render's do less; such independent wander adds to each edge's variance but not
+    to their covariance.  The image is sheared level and the edges detrended, so that a
+    tilted yarn does not read as a wandering centreline."""
     u, v = _detrended(edges[:, 0]), _detrended(edges[:, 1])
     cov = (u * v).mean(dim=-1)
     width = edges.sum(dim=1).mean(dim=-1).clamp_min(1.0)
     root = torch.sqrt(cov.abs() + 1e-4) - 1e-2  # finite gradient at 0
     return (SILHOUETTE_SCALE * torch.sign(cov) * root / width)[:, None]
+
+
+#: The longest lag of the contour's autocorrelation, as a fraction of the image's width.
+CONTOUR_LAGS = 0.5
+
+
+def _contour(edges: Tensor) -> Tensor:
+    """(B, CONTOUR_LAGS * W) the autocorrelation along the axis of each edge of the core's
+    silhouette (:func:`_core_edges`, (B, 2, W)), detrended, averaged over the two edges, at
+    lags 1 .. CONTOUR_LAGS W, each lag normalised by its overlap and all by lag 0.
+
+    The plies' outlines make the core's edges move out and in every ``alpha_ply / n``
+    (:func:`_silhouette`), so the autocorrelation peaks there, wherever each fiber lands.
+    Why beside ``period`` and ``stripes``, which read the stripes inside the core band: a
+    backlit core of many fibers is nearly opaque in a render and grey in a photo, so the
+    stripes inside it differ between the two more than the outline does; and a microscope's
+    photo shows three or four ply periods, which the ``period`` group's lags (a third of
+    the width) do not reach.  Zero-padded FFT, so that the lags do not wrap around."""
+    w = edges.shape[-1]
+    x = _detrended(edges.flatten(0, 1))
+    acf = torch.fft.irfft(torch.fft.rfft(x, n=2 * w).abs().square(), n=2 * w)
+    acf = acf[..., : int(CONTOUR_LAGS * w) + 1]
+    acf = acf / torch.arange(w, w - acf.shape[-1], -1, dtype=x.dtype, device=x.device)
+    acf = (acf[:, 1:] / acf[:, :1].clamp_min(1e-12)).view(edges.shape[0], 2, -1)
+    return acf.mean(dim=1)
 
 
 #: Gaussian blur (std in pixels) of the core band before its autocorrelation and spectrum:

@@ -95,6 +95,8 @@ def main() -> None:
                     "most likely ply counts, as `ipm fit --ply-counts`")
     ap.add_argument("--no-prior", action="store_true", help="the image loss alone, as `ipm "
                     "fit --no-prior`: for yarns outside the nets' training range")
+    ap.add_argument("--match-size", action="store_true", help="start from the nets' yarn "
+                    "scaled to the photo's core width, as `ipm fit --match-size`")
     args = ap.parse_args()
 
     from PIL import Image
@@ -113,7 +115,7 @@ def main() -> None:
     stages = {} if args.params is None else search_stages_of(args.params)
     search = SearchOptions(**stages, polish=args.polish,
                            **({} if args.budget is None else {"budget": args.budget}))
-    options = FitOptions(search=search, ply_counts=args.ply_counts)
+    options = FitOptions(search=search, ply_counts=args.ply_counts, match_size=args.match_size)
     args.out.mkdir(parents=True, exist_ok=True)
     rows = fit_all(args.out / "fits.jsonl", records, lambda i, photo: ensemble.predict(photo),
                    options, None if args.no_prior else ensemble.sigma(args.pixel_size),

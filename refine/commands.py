@@ -33,6 +33,9 @@ _PARAMS_HELP = ("parameters to search (any but the ply count n; m is rounded), "
                 "nets' values.  A stage of flyaway parameters alone (g,l_hair,d_mean) is "
                 "scored by the flyaway profile, over the whole sampler range; alpha_ply "
                 "alone after R_ply by the stripes' period")
+_MATCH_SIZE_HELP = ("start the search from the nets' yarn scaled (R_ply, r_x, r_y by one "
+                    "factor) to the photo's core width, keeping the nets' proportions: for "
+                    "yarns thinner or thicker than the nets know")
 _POLISH_HELP = ("evaluations of a local search (BOBYQA) from the best of each stage of two "
                 "or more parameters, beyond the budget: a global search's budget only "
                 "samples a coarse grid there (0: none)")
@@ -79,6 +82,7 @@ def fit(
     setup: SetupOpt = "frontlit",
     learned: Annotated[float, typer.Option(min=0, help=_LEARNED_HELP)] = DEFAULT_LEARNED,
     detail: Annotated[float, typer.Option(min=0, help=_DETAIL_HELP)] = 0.0,
+    match_size: Annotated[bool, typer.Option("--match-size", help=_MATCH_SIZE_HELP)] = False,
 ) -> None:
     """Infer a yarn's parameters from a photo: the neural ensemble, and with --refine a
     render-and-compare search; writes params.json (neural and refined parameters, their
@@ -90,7 +94,8 @@ def fit(
 
     options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
                                               budget=budget, time_s=time_limit, polish=polish),
-                         ply_counts=ply_counts, learned=learned, detail=detail)
+                         ply_counts=ply_counts, learned=learned, detail=detail,
+                         match_size=match_size)
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
                                          "params.json", "knit.png", "knit.json")], [photo])
     if knit is not None:
@@ -218,6 +223,7 @@ def compare(
                                               "own")] = None,
     learned: Annotated[float, typer.Option(min=0, help=_LEARNED_HELP)] = DEFAULT_LEARNED,
     detail: Annotated[float, typer.Option(min=0, help=_DETAIL_HELP)] = 0.0,
+    match_size: Annotated[bool, typer.Option("--match-size", help=_MATCH_SIZE_HELP)] = False,
 ) -> None:
     """Neural-only vs refined over many photos: `ipm fit --refine` on each, then a table
     (CSV and Markdown) and a figure of photo | neural | refined."""
@@ -232,7 +238,7 @@ def compare(
     options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
                                               budget=budget, polish=polish),
                          ply_counts=ply_counts,
-                         learned=learned, detail=detail)
+                         learned=learned, detail=detail, match_size=match_size)
     listed = cmp.photos_in(photos, pixel_size, count, setup)
     setup = listed[0].setup
     ensemble = Ensemble.load(models, setup=setup)
@@ -247,6 +253,7 @@ def compare(
     settings |= {"detail": detail} if detail else {}
     settings |= {"ply_counts": ply_counts} if ply_counts > 1 else {}  # (older: one)
     settings |= {"polish": polish} if polish else {}
+    settings |= {"match_size": True} if match_size else {}
     later = options.search.later
     settings |= {"later_stages": [list(s) for s in later]} if later else {}
     saved = out / "settings.json"

@@ -18,7 +18,7 @@ from scipy.stats import norm
 
 from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
-from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
+from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams, clipped
 from ipm.photo import Photo, linear_to_srgb, srgb_to_linear
 from ipm.refine.objective import (
     Detail,
@@ -36,7 +36,7 @@ from ipm.refine.search import (
     SearchResult,
     search_ply_counts,
 )
-from ipm.refine.stats import centre_rows, yarn_centre, yarn_tilt
+from ipm.refine.stats import centre_rows, core_width, yarn_centre, yarn_tilt
 from ipm.render.photometric import Photometric
 from ipm.render.scene import Frame, frame_size, pixel_size_mm
 
@@ -57,7 +57,9 @@ class FitOptions:
     user.  learned: the weight of the nets' readings in the loss (``readings`` of
     :func:`fit`; 0: the hand-made statistics alone).  detail: the weight of the detail nets'
     readings of a window at their pitch, rendered per evaluation besides the search's view
-    (``detail`` of :func:`fit`, :class:`ipm.refine.objective.Detail`; 0: none)."""
+    (``detail`` of :func:`fit`, :class:`ipm.refine.objective.Detail`; 0: none).
+    match_size: start the search from the nets' yarn scaled to the photo's core width
+    (:func:`match_size`) instead of from the nets' yarn itself."""
 
     scale: float = 0.2
     spp: int = 4
@@ -68,6 +70,7 @@ class FitOptions:
     display_spp: int = 16
     learned: float = DEFAULT_LEARNED
     detail: float = 0.0
+    match_size: bool = False
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.scale <= 1 or not 0.05 <= self.display_scale <= 1:
@@ -191,6 +194,35 @@ def match_colour(objective: RenderObjective, params: YarnParams, photo: np.ndarr
     return params
 
 
+#: The thickness parameters :func:`match_size` scales together.
+SIZED = ("R_ply", "r_x", "r_y")
+
+
+def match_size(objective: RenderObjective, params: YarnParams, photo: np.ndarray,
+               rounds: int = 2) -> YarnParams:
+    """``params`` with R_ply, r_x and r_y scaled by one factor until the render's core is as
+    wide as the photo's (:func:`ipm.refine.stats.core_width`; the width grows about linearly
+    with the factor, two rounds suffice).
+
+    Why one factor: the core's width is what the image shows of the thickness; how it
+    splits between the ply helix and the plies' two radii it hardly shows (r_x, r_y are not
+    identifiable, docs/identifiability.md).  A search of the three on a photo thinner than
+    the nets know moved them apart at random, and plies flattened to half their width put
+    bumps on the core's outline at half the ply period (so the pitch search doubled the
+    pitch).  Scaling keeps the nets' proportions and matches the width."""
+    def width(img: np.ndarray) -> float:
+        return float(core_width(to_tensor(img).mean(dim=1, keepdim=True))[0])
+
+    target = width(photo)
+    for _ in range(rounds):
+        got = width(objective.render(params, 0))
+        if not (target > 0 and got > 0):
+            break
+        factor = float(np.clip(target / got, 0.25, 4.0))
+        params = params.replace(**{k: clipped(k, getattr(params, k) * factor) for k in SIZED})
+    return params
+
+
 def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOptions(),
         refine: bool = True, on_eval: Callable[[int, float, float], None] | None = None,
         sigma: dict[str, float] | None = None, ply_counts: Sequence[int] = (),
@@ -234,14 +266,20 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         return FitResult(neural, neural, loss, loss, False, warnings,
                          seconds=time.perf_counter() - t0, tilt_deg=tilt, sigma=sigma)
     counts = list(dict.fromkeys([neural.n, *ply_counts]))[:options.ply_counts]
-    result = search_ply_counts(objective, neural, counts, options.search, on_eval, sigma)
-    refined = match_colour(objective, result.best, small) if result.improved else neural
-    if not result.improved:
+    start = (match_colour(objective, match_size(objective, neural, small), small)
+             if options.match_size else neural)
+    result = search_ply_counts(objective, start, counts, options.search, on_eval, sigma)
+    loss_neural, improved = result.start_loss, result.improved
+    if start is not neural:  # the sized start counts only if its loss is lower too
+        loss_neural = _mean_loss(objective, neural, options.search)
+        improved = result.best_loss < loss_neural
+    refined = match_colour(objective, result.best, small) if improved else neural
+    if not improved:
         warnings.append("the search found no parameters with a lower loss than the nets' "
                         "over the re-scoring seeds" + (" (loss plus the nets' prior)"
                                                        if sigma else "")
                         + "; the neural result is kept")
-    return FitResult(neural, refined, result.start_loss, result.best_loss, result.improved,
+    return FitResult(neural, refined, loss_neural, result.best_loss, improved,
                      warnings, result, time.perf_counter() - t0, tilt, sigma)
 
 

@@ -150,6 +150,13 @@ def _half_width(median: Tensor) -> Tensor:
     return (median.abs() > 0.5).sum(dim=-1) / 2
 
 
+def core_width(gray: Tensor) -> Tensor:
+    """(B,) the core's half-contrast width in rows of a ``(B, 1, H, W)`` image: the rows
+    whose median deviation from the background along the axis is above half the core's
+    contrast (flyaways do not move the median)."""
+    return 2 * _half_width(_centred_deviation(gray)[:, 0].median(dim=-1).values)
+
+
 #: A pixel is fiber where its deviation exceeds this share of the core's contrast (soft, by a
 #: logistic step of FIBER_SOFTNESS).
 FIBER_LEVEL = 0.2

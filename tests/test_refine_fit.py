@@ -154,7 +154,8 @@ def test_a_stage_of_flyaways_is_scored_by_the_flyaway_profile_alone(photo):
     """RenderObjective.for_stage: a stage of flyaway parameters alone is the flyaways group's
     distance and nothing else; the real render of a yarn with three times the flyaways and
     long hairs reads further from the photo than the true yarn; the pitch after the
-    thickness is the stripes' period groups alone; any other stage is the objective
+    thickness is the stripes' period groups and the core's contour alone; any other stage
+    is the objective
     itself, whose weights count the flyaways once a search moves them."""
     from ipm.photo import Photo
     from ipm.refine.objective import DEFAULT_WEIGHTS, RenderObjective, search_weights
@@ -172,7 +173,8 @@ def test_a_stage_of_flyaways_is_scored_by_the_flyaway_profile_alone(photo):
     assert objective.for_stage(("alpha_ply",)) is objective  # a fit of the pitch alone
     pitch = objective.for_stage(("alpha_ply",), earlier=("R_ply", "r_x"))
     d = objective.group_distances(golden, 1)
-    assert pitch(golden, 1) == pytest.approx(d["period"] + 2 * d["stripes"])
+    assert pitch(golden, 1) == pytest.approx(sum(DEFAULT_WEIGHTS[k] * d[k] for k in
+                                                 ("period", "stripes", "contour")))
     assert objective.weights["flyaways"] > 0 == search_weights(["R_ply"])["flyaways"]
     assert search_weights(["R_ply"]) == DEFAULT_WEIGHTS
 
@@ -236,3 +238,45 @@ def test_a_small_fine_photo_is_searched_over_its_own_view_at_a_finer_pitch():
     full_rows_mm = (np.arange(full.shape[0]) - (full.shape[0] - 1) / 2) * 0.02
     expected = np.interp(rows_mm, full_rows_mm, full.mean(axis=1))
     assert np.corrcoef(part.mean(axis=1), expected)[0, 1] > 0.95
+
+
+class _BandObjective:
+    """A stand-in for the render of a search: a dark band as wide as a yarn's core,
+    ``2 (R_ply + r_y)`` at ``pitch`` mm per pixel, drawn here, with a thin dark line across
+    it (a flyaway)."""
+
+    def __init__(self, pitch: float) -> None:
+        self.pitch = pitch
+
+    def render(self, params, seed):
+        return band_image(self.width(params))
+
+    def width(self, params) -> float:
+        return 2 * (params.R_ply + params.r_y) / self.pitch
+
+
+def band_image(width_px: float, h: int = 240, w: int = 320) -> np.ndarray:
+    rows = np.arange(h)[:, None] - (h - 1) / 2
+    img = np.where(np.abs(rows) < width_px / 2, 0.2, 0.8) * np.ones((h, w))
+    cols = np.arange(w)[None, :]
+    img = np.where(np.abs(rows - 0.3 * (cols - w / 2)) < 1, 0.2, img)
+    return np.repeat(img[..., None], 3, axis=2)
+
+
+def test_match_size_scales_the_thickness_to_the_photo_core_keeping_proportions():
+    """The start of a sized search: R_ply, r_x and r_y scaled by one factor until the drawn
+    core is as wide as the photo's (60 px), from a yarn twice too thick and from one too
+    thin; the other parameters are left alone."""
+    from ipm.refine.fit import match_size
+
+    truth = preset("golden")
+    objective = _BandObjective(2 * (truth.R_ply + truth.r_y) / 60)
+    photo = band_image(60)
+    for factor in (2.0, 0.6):
+        start = truth.replace(R_ply=truth.R_ply * factor, r_x=truth.r_x * factor,
+                              r_y=truth.r_y * factor)
+        sized = match_size(objective, start, photo)
+        assert objective.width(sized) == pytest.approx(60, abs=1.5)
+        ratios = [getattr(sized, k) / getattr(start, k) for k in ("R_ply", "r_x", "r_y")]
+        assert max(ratios) == pytest.approx(min(ratios))
+        assert sized.replace(R_ply=start.R_ply, r_x=start.r_x, r_y=start.r_y) == start

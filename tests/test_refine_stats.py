@@ -216,3 +216,17 @@ def test_contour_reads_the_ply_period_off_the_outline_whatever_is_inside_the_cor
     assert min(distances, key=distances.get) in (0.9, 1.0, 1.12), distances
     lowest = min(distances.values())
     assert distances[0.75] > 2 * lowest and distances[1.35] > 2 * lowest, distances
+
+
+def test_core_width_is_the_drawn_band_whatever_crosses_it():
+    """A dark band of 40 rows on a bright background, crossed by thin slanted lines
+    (flyaways) and shifted off the middle: its core width is 40 rows."""
+    from ipm.refine.stats import core_width
+
+    h, w = 120, 320
+    y = torch.arange(h, dtype=torch.float64)[:, None]
+    x = torch.arange(w, dtype=torch.float64)[None, :]
+    img = torch.where((y - 50).abs() < 20, 0.25, 0.8) * torch.ones(h, w, dtype=torch.float64)
+    for k in range(6):
+        img = torch.where((y - 0.4 * (x - 50 * k)).abs() < 0.8, 0.3, img)
+    assert float(core_width(img[None, None])[0]) == pytest.approx(40, abs=1)

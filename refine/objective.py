@@ -38,7 +38,10 @@ from ipm.render.scene import Frame
 #: noise), so they are off.  The silhouette's edges tell an even ply count from an odd one,
 #: which the stripes' period cannot (``python -m ipm.benchmarks.ply_count_loss``,
 #: benchmarks/results/ply_count_loss_cycles_backlit.md; the real photos' ply counts in
-#: docs/real-photos-silhouette).
+#: docs/real-photos-silhouette).  The contour reads the ply period off the core's outline,
+#: where the stripes inside a real photo's grey core and a render's opaque one differ
+#: (``python -m ipm.benchmarks.pitch_profile``; the real photos' periods in
+#: docs/real-photos-contour).
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
                    "period": 1.0, "stripes": 2.0, "silhouette": 1.0, "contour": 0.25,
                    "histogram": 0.0}
@@ -211,9 +214,10 @@ class RenderObjective:
           core band move the period and stripes groups too, and on a real photo a grid of
           flyaway amounts and lengths moved those more than the flyaway group: scored by
           every group, that stage would follow the stripes;
-        * ``alpha_ply`` alone after a stage that moved ``R_ply``: the ``period`` and
-          ``stripes`` groups alone.  The core profile depends on the ply pitch too, and a
-          thickness fitted at the nets' pitch holds the core profile there: on the real
+        * ``alpha_ply`` alone after a stage that moved ``R_ply``: the ``period``,
+          ``stripes`` and ``contour`` groups alone.  The core profile depends on the ply
+          pitch too, and a thickness fitted at the nets' pitch holds the core profile there:
+          on the real
           photos the core group pulled the pitch back towards the nets' (often twice the
           photo's stripe period) where the stripes put it at the photo's
           (docs/real-photos-flyaways against docs/real-photos-pitch);

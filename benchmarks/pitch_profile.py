@@ -65,6 +65,7 @@ def main() -> None:
     ap.add_argument("--photos", type=Path, required=True)
     ap.add_argument("--pixel-size", type=float, required=True, help="mm per photo pixel")
     ap.add_argument("--fits", type=Path, required=True, help="fits.jsonl of a real_photos run")
+    ap.add_argument("--count", type=int, default=None, help="the first N fits only")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
 
@@ -74,6 +75,7 @@ def main() -> None:
     from ipm.render.scene import setup_options
 
     rows = [json.loads(line) for line in args.fits.read_text().splitlines() if line.strip()]
+    rows = rows[: args.count]
     renderer = Renderer(options=setup_options("backlit"))
     table = []
     for row in rows:

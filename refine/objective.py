@@ -39,9 +39,10 @@ from ipm.render.scene import Frame
 #: which the stripes' period cannot (``python -m ipm.benchmarks.ply_count_loss``,
 #: benchmarks/results/ply_count_loss_cycles_backlit.md; the real photos' ply counts in
 #: docs/real-photos-silhouette).  The contour reads the ply period off the core's outline,
-#: where the stripes inside a real photo's grey core and a render's opaque one differ
-#: (``python -m ipm.benchmarks.pitch_profile``; the real photos' periods in
-#: docs/real-photos-contour).
+#: where the stripes inside a real photo's grey core and a render's opaque one differ; with
+#: it the real photos' fitted periods came nearer theirs (docs/real-photos-contour against
+#: docs/real-photos-material), though alone it is not where the period's minimum is
+#: (benchmarks/results/pitch_profile_real.md).
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
                    "period": 1.0, "stripes": 2.0, "silhouette": 1.0, "contour": 0.25,
                    "histogram": 0.0}

@@ -205,11 +205,13 @@ def match_size(objective: RenderObjective, params: YarnParams, photo: np.ndarray
     with the factor, two rounds suffice).
 
     Why one factor: the core's width is what the image shows of the thickness; how it
-    splits between the ply helix and the plies' two radii it hardly shows (r_x, r_y are not
-    identifiable, docs/identifiability.md).  A search of the three on a photo thinner than
-    the nets know moved them apart at random, and plies flattened to half their width put
-    bumps on the core's outline at half the ply period (so the pitch search doubled the
-    pitch).  Scaling keeps the nets' proportions and matches the width."""
+    splits between the ply helix and the plies' two radii it hardly shows (``r_y`` is not
+    identifiable, nor ``r_x`` in the backlit setup: docs/identifiability.md,
+    docs/identifiability-backlit-contour.md).  A search of the three on the real photos,
+    thinner than the nets know, flattened the plies (``r_y`` near half of ``r_x``,
+    docs/real-photos-contour), and flattened plies bump the core's outline twice per ply
+    crossing.  Scaling keeps the nets' proportions and matches the width.  Whether a fit
+    from the sized start does better is not yet measured, so it is an option."""
     def width(img: np.ndarray) -> float:
         return float(core_width(to_tensor(img).mean(dim=1, keepdim=True))[0])
 

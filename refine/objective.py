@@ -218,9 +218,8 @@ class RenderObjective:
         * ``alpha_ply`` alone after a stage that moved ``R_ply``: the ``period``,
           ``stripes`` and ``contour`` groups alone.  The core profile depends on the ply
           pitch too, and a thickness fitted at the nets' pitch holds the core profile there:
-          on the real
-          photos the core group pulled the pitch back towards the nets' (often twice the
-          photo's stripe period) where the stripes put it at the photo's
+          on the real photos the core group pulled the pitch back towards the nets' (often
+          twice the photo's stripe period) where the stripes put it at the photo's
           (docs/real-photos-flyaways against docs/real-photos-pitch);
         * any other: the objective itself."""
         if names and all(k in FLYAWAY_RANGES for k in names):

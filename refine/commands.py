@@ -32,7 +32,8 @@ _PARAMS_HELP = ("parameters to search (any but the ply count n; m is rounded), "
                 "(alpha_ply;R_ply,r_x: those from alpha_ply's best); the others keep the "
                 "nets' values.  A stage of flyaway parameters alone (g,l_hair,d_mean) is "
                 "scored by the flyaway profile, over the whole sampler range; alpha_ply "
-                "alone after R_ply by the stripes' period and the core's outline")
+                "alone after R_ply by the stripes' period and the core's outline; the thickness "
+                "without alpha_ply by all but the outline")
 _MATCH_SIZE_HELP = ("start the search from the nets' yarn scaled (R_ply, r_x, r_y by one "
                     "factor) to the photo's core width, keeping the nets' proportions: for "
                     "yarns thinner or thicker than the nets know")

@@ -21,6 +21,7 @@ from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams, clipped
 from ipm.photo import Photo, linear_to_srgb, srgb_to_linear
 from ipm.refine.objective import (
+    THICKNESS,
     Detail,
     Readings,
     RenderObjective,
@@ -194,10 +195,6 @@ def match_colour(objective: RenderObjective, params: YarnParams, photo: np.ndarr
     return params
 
 
-#: The thickness parameters :func:`match_size` scales together.
-SIZED = ("R_ply", "r_x", "r_y")
-
-
 def match_size(objective: RenderObjective, params: YarnParams, photo: np.ndarray,
                rounds: int = 2) -> YarnParams:
     """``params`` with R_ply, r_x and r_y scaled by one factor until the render's core is as
@@ -221,7 +218,8 @@ def match_size(objective: RenderObjective, params: YarnParams, photo: np.ndarray
         if not (target > 0 and got > 0):
             break
         factor = float(np.clip(target / got, 0.25, 4.0))
-        params = params.replace(**{k: clipped(k, getattr(params, k) * factor) for k in SIZED})
+        params = params.replace(**{k: clipped(k, getattr(params, k) * factor)
+                                   for k in THICKNESS})
     return params
 
 

@@ -46,6 +46,9 @@ from ipm.render.scene import Frame
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
                    "period": 1.0, "stripes": 2.0, "silhouette": 1.0, "contour": 0.25,
                    "histogram": 0.0}
+#: The thickness parameters: a stage moving them without the ply pitch is scored without the
+#: ``contour`` group (:meth:`RenderObjective.for_stage`).
+THICKNESS = ("R_ply", "r_x", "r_y")
 #: The weight of the ``flyaways`` group in a search that moves flyaway parameters.
 FLYAWAY_WEIGHT = 1.0
 
@@ -221,11 +224,19 @@ class RenderObjective:
           on the real photos the core group pulled the pitch back towards the nets' (often
           twice the photo's stripe period) where the stripes put it at the photo's
           (docs/real-photos-flyaways against docs/real-photos-pitch);
+        * the thickness (``R_ply``, ``r_x``, ``r_y``) without ``alpha_ply``: every group
+          but the ``contour``.  At a pitch not yet fitted, the outline's period is wrong,
+          and plies flattened to half their width bump the outline twice as often: on the
+          real photos a thickness stage scored with the contour flattened the plies and
+          held the pitch stage after it at about twice the photo's period
+          (docs/real-photos-contour);
         * any other: the objective itself."""
         if names and all(k in FLYAWAY_RANGES for k in names):
             groups = {"flyaways": FLYAWAY_WEIGHT}
         elif tuple(names) == ("alpha_ply",) and "R_ply" in earlier:
             groups = {k: self.weights[k] for k in ("period", "stripes", "contour")}
+        elif set(names) & set(THICKNESS) and "alpha_ply" not in names:
+            groups = {k: w for k, w in self.weights.items() if k != "contour"}
         else:
             return self
         return partial(self, weights={k: groups.get(k, 0.0) for k in self.photo_stats})

@@ -154,8 +154,8 @@ def test_a_stage_of_flyaways_is_scored_by_the_flyaway_profile_alone(photo):
     """RenderObjective.for_stage: a stage of flyaway parameters alone is the flyaways group's
     distance and nothing else; the real render of a yarn with three times the flyaways and
     long hairs reads further from the photo than the true yarn; the pitch after the
-    thickness is the stripes' period groups and the core's contour alone; any other stage
-    is the objective
+    thickness is the stripes' period groups and the core's contour alone, the thickness
+    before the pitch every group but the contour; any other stage is the objective
     itself, whose weights count the flyaways once a search moves them."""
     from ipm.photo import Photo
     from ipm.refine.objective import DEFAULT_WEIGHTS, RenderObjective, search_weights
@@ -175,6 +175,11 @@ def test_a_stage_of_flyaways_is_scored_by_the_flyaway_profile_alone(photo):
     d = objective.group_distances(golden, 1)
     assert pitch(golden, 1) == pytest.approx(sum(DEFAULT_WEIGHTS[k] * d[k] for k in
                                                  ("period", "stripes", "contour")))
+    thickness = objective.for_stage(("R_ply", "r_x", "r_y"))
+    assert thickness(golden, 1) == pytest.approx(sum(w * d[k] for k, w in
+                                                     objective.weights.items()
+                                                     if k != "contour"))
+    assert d["contour"] > 0
     assert objective.weights["flyaways"] > 0 == search_weights(["R_ply"])["flyaways"]
     assert search_weights(["R_ply"]) == DEFAULT_WEIGHTS
 

@@ -227,9 +227,9 @@ class RenderObjective:
         * the thickness (``R_ply``, ``r_x``, ``r_y``) without ``alpha_ply``: every group
           but the ``contour``.  At a pitch not yet fitted, the outline's period is wrong,
           and plies flattened to half their width bump the outline twice as often: on the
-          real photos a thickness stage scored with the contour flattened the plies and
-          held the pitch stage after it at about twice the photo's period
-          (docs/real-photos-contour);
+          real photos, a thickness stage scored with the contour left the pitch stage after
+          it at 1.7-2.1 times the photo's period on five photos (docs/real-photos-contour;
+          without it, docs/real-photos-contour-pitch: the period 7% off, the core 8%);
         * any other: the objective itself."""
         if names and all(k in FLYAWAY_RANGES for k in names):
             groups = {"flyaways": FLYAWAY_WEIGHT}

@@ -234,7 +234,7 @@ def _edge_distance(x: Tensor, reach: Tensor) -> Tensor:
 
 
 def _detrended(y: Tensor) -> Tensor:
-    """``y`` (B, W) minus its least-squares line along W."""
+    """``y`` (..., W) minus its least-squares line along W."""
     x = torch.linspace(-1, 1, y.shape[-1], dtype=y.dtype, device=y.device)
     y = y - y.mean(dim=-1, keepdim=True)
     return y - x * (y * x).sum(-1, keepdim=True) / (x * x).sum()
@@ -303,7 +303,8 @@ CONTOUR_LAGS = 0.5
 def _contour(edges: Tensor) -> Tensor:
     """(B, CONTOUR_LAGS * W) the autocorrelation along the axis of each edge of the core's
     silhouette (:func:`_core_edges`, (B, 2, W)), detrended, averaged over the two edges, at
-    lags 1 .. CONTOUR_LAGS W, each lag normalised by its overlap and all by lag 0.
+    lags 1 .. CONTOUR_LAGS W, each lag normalised by its overlap (:func:`_lag_products`) and
+    all by lag 0.
 
     The plies' outlines make the core's edges move out and in every ``alpha_ply / n``
     (:func:`_silhouette`), so the autocorrelation peaks there, wherever each fiber lands.
@@ -311,14 +312,19 @@ def _contour(edges: Tensor) -> Tensor:
     backlit core of many fibers is nearly opaque in a render and grey in a photo, so the
     stripes inside it differ between the two more than the outline does; and a microscope's
     photo shows three or four ply periods, which the ``period`` group's lags (a third of
-    the width) do not reach.  Zero-padded FFT, so that the lags do not wrap around."""
+    the width) do not reach."""
     w = edges.shape[-1]
-    x = _detrended(edges.flatten(0, 1))
-    acf = torch.fft.irfft(torch.fft.rfft(x, n=2 * w).abs().square(), n=2 * w)
-    acf = acf[..., : int(CONTOUR_LAGS * w) + 1]
-    acf = acf / torch.arange(w, w - acf.shape[-1], -1, dtype=x.dtype, device=x.device)
-    acf = (acf[:, 1:] / acf[:, :1].clamp_min(1e-12)).view(edges.shape[0], 2, -1)
-    return acf.mean(dim=1)
+    acf = _lag_products(_detrended(edges), int(CONTOUR_LAGS * w))
+    return (acf[..., 1:] / acf[..., :1].clamp_min(1e-12)).mean(dim=1)
+
+
+def _lag_products(x: Tensor, lags: int) -> Tensor:
+    """(..., lags + 1) the autocorrelation of ``x`` (..., W) along its last axis at lags
+    0 .. ``lags``, each lag's sum of products divided by its overlap ``W - lag``.
+    Zero-padded FFT, so that the lags do not wrap around."""
+    w = x.shape[-1]
+    acf = torch.fft.irfft(torch.fft.rfft(x, n=2 * w).abs().square(), n=2 * w)[..., : lags + 1]
+    return acf / torch.arange(w, w - lags - 1, -1, dtype=x.dtype, device=x.device)
 
 
 #: Gaussian blur (std in pixels) of the core band before its autocorrelation and spectrum:
@@ -339,13 +345,9 @@ def _blurred_rows(band: Tensor) -> Tensor:
 def _axial_autocorrelation(band: Tensor) -> Tensor:
     """(B, W // 3) mean autocorrelation along the axis of the rows of ``band`` (B, h, W),
     blurred by ACF_BLUR, at lags 1 .. W // 3, normalised by lag 0: the stripes of the ply
-    twist repeat every ``alpha_ply / n`` and peak there, wherever each fiber lands.
-    Zero-padded FFT, so that the lags do not wrap around."""
-    w = band.shape[-1]
-    x = _blurred_rows(band)
-    power = torch.fft.rfft(x, n=2 * w).abs().square()
-    acf = torch.fft.irfft(power, n=2 * w)[..., : w // 3 + 1].mean(dim=1)
-    acf = acf / torch.arange(w, w - acf.shape[-1], -1, dtype=x.dtype, device=x.device)
+    twist repeat every ``alpha_ply / n`` and peak there, wherever each fiber lands
+    (:func:`_lag_products`)."""
+    acf = _lag_products(_blurred_rows(band), band.shape[-1] // 3).mean(dim=1)
     return acf[:, 1:] / acf[:, :1].clamp_min(1e-12)
 
 

@@ -48,7 +48,7 @@ def profile(photo_file: Path, row: dict, pixel_size_mm: float, renderer) -> dict
     objective = RenderObjective(renderer, small, scale, options.spp,
                                 seeds_per_eval=options.seeds_per_eval,
                                 tilt_deg=photo_tilt(small), frame=frame)
-    stage = objective.for_stage(("alpha_ply",), ("R_ply",)).keywords["weights"]
+    stage = objective.stage_weights(("alpha_ply",), ("R_ply",))
     params = YarnParams.from_dict(row["refined"])
     curves: dict[str, list[float]] = {g: [] for g in (*GROUPS, STAGE)}
     for period in PERIODS_MM:

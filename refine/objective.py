@@ -228,9 +228,16 @@ class RenderObjective:
           but the ``contour``.  At a pitch not yet fitted, the outline's period is wrong,
           and plies flattened to half their width bump the outline twice as often: on the
           real photos, a thickness stage scored with the contour left the pitch stage after
-          it at 1.7-2.1 times the photo's period on five photos (docs/real-photos-contour;
-          without it, docs/real-photos-contour-pitch: the period 7% off, the core 8%);
+          it at about twice the photo's period on several photos (docs/real-photos-contour
+          against docs/real-photos-contour-pitch);
         * any other: the objective itself."""
+        weights = self.stage_weights(names, earlier)
+        return self if weights is None else partial(self, weights=weights)
+
+    def stage_weights(self, names: Sequence[str], earlier: Sequence[str] = ()
+                      ) -> dict[str, float] | None:
+        """The group weights :meth:`for_stage` scores a stage with; None for the objective's
+        own."""
         if names and all(k in FLYAWAY_RANGES for k in names):
             groups = {"flyaways": FLYAWAY_WEIGHT}
         elif tuple(names) == ("alpha_ply",) and "R_ply" in earlier:
@@ -238,5 +245,5 @@ class RenderObjective:
         elif set(names) & set(THICKNESS) and "alpha_ply" not in names:
             groups = {k: w for k, w in self.weights.items() if k != "contour"}
         else:
-            return self
-        return partial(self, weights={k: groups.get(k, 0.0) for k in self.photo_stats})
+            return None
+        return {k: groups.get(k, 0.0) for k in self.photo_stats}

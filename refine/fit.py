@@ -205,7 +205,7 @@ def match_size(objective: RenderObjective, params: YarnParams, photo: np.ndarray
     splits between the ply helix and the plies' two radii it hardly shows (``r_y`` is not
     identifiable, nor ``r_x`` in the backlit setup: docs/identifiability.md,
     docs/identifiability-backlit-contour.md).  A search of the three on the real photos,
-    thinner than the nets know, flattened the plies (``r_y`` near half of ``r_x``,
+    thinner than the nets know, flattened the plies (``r_y`` well below ``r_x``:
     docs/real-photos-contour), and flattened plies bump the core's outline twice per ply
     crossing.  Scaling keeps the nets' proportions and matches the width.  Whether a fit
     from the sized start does better is not yet measured, so it is an option."""

@@ -131,14 +131,15 @@ def load_records(folder: Path, count: int) -> list:
 
 # --- stage 2: predictions -------------------------------------------------------------------
 
-def load_approaches(models: Path | None, variants: Path | None) -> dict:
-    """``{name: Ensemble}``: the ensemble, and each trained variant whose raw-yarn net is in
-    ``variants/<name>/raw``, with the ensemble's flyaway net (the paper trains that net the
-    same way in every variant)."""
+def load_approaches(models: Path | None, variants: Path | None,
+                    setup: str | None = None) -> dict:
+    """``{name: Ensemble}``: the ensemble (of ``setup``'s shipped nets when ``models`` is
+    None), and each trained variant whose raw-yarn net is in ``variants/<name>/raw``, with
+    the ensemble's flyaway net (the paper trains that net the same way in every variant)."""
     from ipm.nets.ensemble import Ensemble
     from ipm.nets.store import load_net
 
-    ens = Ensemble.load(models)
+    ens = Ensemble.load(models, setup=setup)
     out = {ENSEMBLE: ens}
     if variants is not None and not any((Path(variants) / n / "raw" / "model.json").is_file()
                                         for n in VARIANTS):
@@ -149,7 +150,8 @@ def load_approaches(models: Path | None, variants: Path | None) -> dict:
         if variants is not None and (folder / "model.json").is_file():
             net, info = load_net(folder)
             out[name] = Ensemble({"raw": net, "flyaways": ens.nets["flyaways"]},
-                                 {"raw": info, "flyaways": ens.info["flyaways"]}, folder.parent)
+                                 {"raw": info, "flyaways": ens.info["flyaways"]}, folder.parent,
+                                 ens.setup)
     return out
 
 

@@ -145,13 +145,16 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None],
             params: Sequence[str] = RAW_CONTINUOUS) -> dict:
     """Counts, median fit time, and with labels the MAE per parameter of ``params`` (the
     continuous raw-yarn ones, and any other the search moved: :func:`reported`) of both
-    reconstructions (raw units) and the change in %."""
+    reconstructions (raw units) and the change in %, and how often each has the true ply
+    count."""
     out: dict = {"count": len(rows), "improved": int(sum(r["improved"] for r in rows)),
                  "fit_seconds_median": float(np.median([r["seconds"] for r in rows]))
                  if rows else None, "params": {}}
     labelled = [(r, t) for r, t in zip(rows, truth, strict=False) if t is not None]
     if not labelled:
         return out
+    out["n_right"] = {kind: float(np.mean([r[kind]["n"] == t.n for r, t in labelled]))
+                      for kind in ("neural", "refined")}
     for k in params:
         a = float(np.mean([abs(r["neural"][k] - getattr(t, k)) for r, t in labelled]))
         b = float(np.mean([abs(r["refined"][k] - getattr(t, k)) for r, t in labelled]))
@@ -216,6 +219,9 @@ def markdown(s: dict, rows: list[dict], command: str, figure: str | None) -> str
                          f"{v['refined']:.4g} ({100 * v['refined'] / width:.1f}%) | "
                          f"{v['change_pct']:+.0f}% | {held} |")
         lines.append("")
+    if "n_right" in s:
+        lines += [f"Ply count n right: neural {s['n_right']['neural']:.0%}, refined "
+                  f"{s['n_right']['refined']:.0%}.", ""]
     lines += ["| photo | loss neural | loss refined | improved |", "|---|---|---|---|"]
     lines += [f"| {Path(r['image']).name} | {r['loss_neural']:.4f} | {r['loss_refined']:.4f} "
               f"| {'yes' if r['improved'] else 'no'} |" for r in rows]

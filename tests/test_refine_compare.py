@@ -150,3 +150,18 @@ def test_the_report_shows_the_flyaway_parameters_a_search_moved():
              "improved": True, "seconds": 1.0}]
     s = summary(rows, [t], reported(staged))["params"]
     assert s["g"]["neural"] == 40 and s["g"]["refined"] == 10 and s["g"]["change_pct"] == -75
+
+
+def test_the_summary_counts_the_right_ply_counts_of_both_reconstructions():
+    from ipm.presets import preset
+    from ipm.refine.compare import markdown, summary
+
+    truth = [preset("golden"), preset("rose")]
+    wrong = [t.replace(n=t.n + 1) for t in truth]
+    rows = [{"image": f"{i}.png", "neural": w.to_dict(), "refined": t.to_dict(),
+             "improved": True, "seconds": 1.0, "loss_neural": 1.0, "loss_refined": 0.5}
+            for i, (t, w) in enumerate(zip(truth, wrong, strict=True))]
+    rows[1]["refined"] = wrong[1].to_dict()
+    s = summary(rows, truth)
+    assert s["n_right"] == {"neural": 0.0, "refined": 0.5}
+    assert "Ply count n right: neural 0%, refined 50%." in markdown(s, rows, "c", None)

@@ -96,24 +96,51 @@ class Ensemble:
             keep.add(max(fine, key=upsampling) if fine else min(names, key=upsampling))
         return {name: net for name, net in self.nets.items() if name in keep}
 
-    def sigma(self, pixel_size_mm: float = PIXEL_SIZE_MM) -> dict[str, float]:
-        """The error per continuous parameter of the nets :meth:`chosen` for this pixel size,
-        as a Gaussian standard deviation: the validation MAE each net stored with its best
-        epoch, times sqrt(pi / 2) (for a Gaussian error, MAE = sigma sqrt(2 / pi)).  The
-        refinement's prior (:func:`ipm.refine.search.search`)."""
+    def _val_mae(self, name: str, param: str) -> float | None:
+        mae = self.info[name].get("val", {}).get("mae", {}).get(param)
+        return None if mae is None else float(mae)
+
+    def deciders(self, pixel_size_mm: float = PIXEL_SIZE_MM) -> dict[str, str]:
+        """``{parameter: net}``: which of the nets :meth:`chosen` for this pixel size gives
+        each parameter.  A classification net decides its class (``n``, the thickness);
+        where several regressions read a parameter (a multi-task ``raw`` net beside the
+        per-parameter nets), the one with the lowest validation MAE on it, which the
+        validation set, not a test set, decides; a net with no stored MAE comes last, and
+        ties go to the first in the ensemble's order."""
+        nets = self.chosen(pixel_size_mm)
+
+        def rank(name: str, k: str) -> tuple[int, float]:
+            if nets[name].config.spec.is_classification:
+                return 0, 0.0
+            mae = self._val_mae(name, k)
+            return (1, mae) if mae is not None else (2, 0.0)
+
         out = {}
-        for name in self.chosen(pixel_size_mm):
-            for k, mae in self.info[name].get("val", {}).get("mae", {}).items():
-                out[k] = float(mae) * float(np.sqrt(np.pi / 2))
+        for k in PARAM_ORDER:
+            names = [n for n, net in nets.items() if k in net.config.spec.decides]
+            if names:
+                out[k] = min(names, key=lambda n, k=k: rank(n, k))
+        return out
+
+    def sigma(self, pixel_size_mm: float = PIXEL_SIZE_MM) -> dict[str, float]:
+        """The error per continuous parameter of the nets that decide it for this pixel size
+        (:meth:`deciders`), as a Gaussian standard deviation: the validation MAE each net
+        stored with its best epoch, times sqrt(pi / 2) (for a Gaussian error, MAE = sigma
+        sqrt(2 / pi)).  The refinement's prior (:func:`ipm.refine.search.search`)."""
+        out = {}
+        for k, name in self.deciders(pixel_size_mm).items():
+            mae = self._val_mae(name, k)
+            if mae is not None:
+                out[k] = mae * float(np.sqrt(np.pi / 2))
         return out
 
     def mean_prediction(self, pixel_size_mm: float = PIXEL_SIZE_MM) -> dict[str, float]:
-        """The predict-the-mean baseline of the nets :meth:`chosen` for this pixel size: each
-        net's mean training label, decoded."""
-        values: dict[str, float] = {}
-        for name, net in self.chosen(pixel_size_mm).items():
-            values.update(net.config.spec.decode(np.asarray(self.info[name]["train_mean"])))
-        return values
+        """The predict-the-mean baseline for this pixel size: for each parameter, the mean
+        training label of the net that decides it (:meth:`deciders`), decoded."""
+        nets = self.chosen(pixel_size_mm)
+        decoded = {name: net.config.spec.decode(np.asarray(self.info[name]["train_mean"]))
+                   for name, net in nets.items()}
+        return {k: decoded[name][k] for k, name in self.deciders(pixel_size_mm).items()}
 
     def upsampling_warning(self, pixel_size_mm: float) -> str | None:
         """A warning naming the nets (of those :meth:`chosen`) whose input pixels are finer
@@ -202,9 +229,10 @@ class Ensemble:
     def predict(self, photo: Photo, crops: int = 3, base: YarnParams | None = None
                 ) -> YarnParams:
         """The inferred parameters of ``photo``; fields no net decides come from ``base``."""
-        values: dict = {}
-        for name, out in self.outputs(photo, crops).items():
-            values.update(self.nets[name].config.spec.decode(out))
+        decoded = {name: self.nets[name].config.spec.decode(out)
+                   for name, out in self.outputs(photo, crops).items()}
+        values = {k: decoded[name][k]
+                  for k, name in self.deciders(photo.pixel_size_mm).items()}
         extra = {} if base is None else {k: v for k, v in base.to_dict().items()
                                          if k not in PARAM_ORDER}
         return YarnParams(**values, **extra)

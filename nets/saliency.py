@@ -45,10 +45,11 @@ def net_for(ensemble: Ensemble, param: str, pixel_size_mm: float
     ``pixel_size_mm`` (:meth:`Ensemble.chosen`), and its output columns."""
     if param in ensemble.nets:
         return ensemble.nets[param], None
-    for net in ensemble.chosen(pixel_size_mm).values():
+    name = ensemble.deciders(pixel_size_mm).get(param)
+    if name is not None:
+        net = ensemble.nets[name]
         spec = net.config.spec
-        if param in spec.decides:
-            return net, None if spec.is_classification else [spec.params.index(param)]
+        return net, None if spec.is_classification else [spec.params.index(param)]
     raise UserError(f"no net in {ensemble.folder} predicts {param!r}; nets: "
                     f"{', '.join(ensemble.nets)}")
 

@@ -22,6 +22,10 @@
 # 24 epochs (make-g, replacing make-c's 12-epoch net; the model card has both nets'
 # validation error).  The shipped backlit nets were made with DETAIL=0.
 #
+# RAW=1 (the default for backlit) adds one multi-task net of every raw-yarn parameter (the
+# paper's `reg`, make-r); the ensemble takes each parameter from whichever net has the
+# lower validation error on it (`Ensemble.deciders`).  Frontlit has not been re-made with it.
+#
 # Every step resumes: a finished dataset or training run is left as it is, so a stopped
 # script is simply run again.  Training runs as two one-thread processes side by side (the
 # two cores of the reference machine), every net from scratch at lr 1e-3 with a cosine
@@ -31,6 +35,7 @@
 set -euo pipefail
 DATA="${1:-data}"; RUNS="${2:-runs}"; OUT="${3:-nets/models}"; SETUP="${SETUP:-frontlit}"
 if [ "$SETUP" = frontlit ]; then DETAIL="${DETAIL:-1}"; else DETAIL="${DETAIL:-0}"; fi
+if [ "$SETUP" = frontlit ]; then RAW="${RAW:-0}"; else RAW="${RAW:-1}"; fi
 mkdir -p "$DATA" "$RUNS"
 if [ "$SETUP" = frontlit ]; then
   look=(); augment=()
@@ -58,7 +63,11 @@ train() { OMP_NUM_THREADS=1 ipm train "${common[@]}" "$@"; }
 (train --nets alpha,m --epochs 18 --out "$RUNS/make-a" &&
  train --nets n,thickness --epochs 12 --out "$RUNS/make-b") & first=$!
 (train --nets alpha_ply,R_ply,r_x,r_y --epochs 12 --out "$RUNS/make-c" &&
- train --nets flyaways --epochs 8 --out "$RUNS/make-d") & second=$!
+ train --nets flyaways --epochs 8 --out "$RUNS/make-d" &&
+ if [ "$RAW" = 1 ]; then
+   OMP_NUM_THREADS=1 ipm train --preset reg --nets raw --epochs 12 --data "$DATA/train" \
+     --val "$DATA/val" --blur 1.5 --lr 1e-3 --seed 0 "${augment[@]}" --out "$RUNS/make-r"
+ fi) & second=$!
 wait "$first"; wait "$second"  # a failed training fails the script
 if [ "$DETAIL" = 1 ]; then
   detail=(--preset ensemble --data "$DATA-detail/train" --val "$DATA-detail/val" --blur 1.5
@@ -70,8 +79,10 @@ if [ "$DETAIL" = 1 ]; then
   wait "$first"; wait "$second"
 fi
 # the ensemble: each net from the last run that trained it
+raw_runs=()
+if [ "$RAW" = 1 ]; then raw_runs=("$RUNS/make-r"); fi
 python3 - "$OUT" "$RUNS/make-a" "$RUNS/make-b" "$RUNS/make-c" "$RUNS/make-d" \
-  "${detail_runs[@]}" <<'PY'
+  "${raw_runs[@]}" "${detail_runs[@]}" <<'PY'
 """Gather the runs' nets into one ensemble folder (written beside, then swapped in); a net
 of a later run replaces the same net of an earlier one.  A run given as RUN=SUFFIX has its
 nets renamed NAME+SUFFIX (the detail nets, beside the nets of the same parameters)."""
@@ -81,6 +92,8 @@ from pathlib import Path
 out = Path(sys.argv[1])
 runs = [(Path(r.partition("=")[0]), r.partition("=")[2]) for r in sys.argv[2:]]
 order = ["n", "thickness", "m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply", "flyaways"]
+order += [net for run, suffix in runs if not suffix  # the multi-task raw net, last
+          for net in json.loads((run / "ensemble.json").read_text())["nets"] if net not in order]
 order += [f"{net}{suffix}" for run, suffix in runs if suffix
           for net in json.loads((run / "ensemble.json").read_text())["nets"]]
 tmp = out.with_name(out.name + ".new")

@@ -406,3 +406,32 @@ def test_a_real_photo_narrower_than_the_crop_is_tiled_along_the_yarn(tmp_path):
     img = frames[0]  # 5 x 3.2 mm: 125 x 80 px at 0.04 mm
     assert img.shape == (80, 200, 3)
     assert np.array_equal(img[:, 125:], img[:, :75])
+
+
+def test_each_parameter_comes_from_the_net_with_the_lowest_validation_error(tmp_path):
+    """A multi-task ``raw`` net beside the per-parameter nets (the backlit ensemble): each
+    parameter is taken from the net whose stored validation MAE on it is lower, the classes
+    (``n``, the thickness) from the classifiers; the prior's sigma follows the same net."""
+    import shutil
+
+    from ipm.nets.ensemble import SHIPPED_FOR, Ensemble
+    from ipm.photo import Photo
+
+    folder = tmp_path / "models"
+    shutil.copytree(SHIPPED_FOR["backlit"], folder)
+    info = json.loads((folder / "raw" / "model.json").read_text())
+    per_net = json.loads((folder / "r_x" / "model.json").read_text())["val"]["mae"]["r_x"]
+    info["val"]["mae"]["r_x"] = 2 * per_net           # raw worse on r_x ...
+    info["val"]["mae"]["r_y"] = 1e-6                  # ... better on r_y
+    (folder / "raw" / "model.json").write_text(json.dumps(info))
+    ens = Ensemble.load(folder, setup="backlit")
+    who = ens.deciders()
+    assert (who["r_x"], who["r_y"], who["n"], who["t_x"]) == ("r_x", "raw", "n", "thickness")
+    assert ens.sigma()["r_x"] == pytest.approx(per_net * np.sqrt(np.pi / 2))
+    rng = np.random.default_rng(0)
+    photo = Photo(rng.uniform(0.3, 1.0, (146 * 4, 300 * 4, 3)), 0.01, "backlit")
+    out = ens.outputs(photo)
+    p = ens.predict(photo)
+    decode = {name: ens.nets[name].config.spec.decode(out[name]) for name in out}
+    assert p.r_x == decode["r_x"]["r_x"] and p.r_y == decode["raw"]["r_y"]
+    assert p.n == decode["n"]["n"]

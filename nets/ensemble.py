@@ -3,7 +3,9 @@
 
 Each net sees the photo at its own pixel pitch (``PIXEL_SIZE_MM / input_scale``); its
 outputs are averaged over a few crops evenly spaced along the yarn (class probabilities for
-``n`` and the thickness class).  Parameters no net decides (fiber colour, the fourth
+``n`` and the thickness class).  Where two nets read a parameter (a multi-task ``raw`` net
+beside the per-parameter ones), the one with the lower validation error gives it
+(:meth:`Ensemble.deciders`).  Parameters no net decides (fiber colour, the fourth
 hierarchy level) keep :class:`YarnParams`' defaults.
 """
 

@@ -42,7 +42,7 @@ def saliency(net: YarnNet, x: torch.Tensor, columns: list[int] | None = None) ->
 def net_for(ensemble: Ensemble, param: str, pixel_size_mm: float
             ) -> tuple[YarnNet, list[int] | None]:
     """The net that decides ``param`` (a parameter or a net name) for a photo of
-    ``pixel_size_mm`` (:meth:`Ensemble.chosen`), and its output columns."""
+    ``pixel_size_mm`` (:meth:`Ensemble.deciders`), and its output columns."""
     if param in ensemble.nets:
         return ensemble.nets[param], None
     name = ensemble.deciders(pixel_size_mm).get(param)

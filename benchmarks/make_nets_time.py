@@ -56,6 +56,7 @@ class Training:
     lane: int
     options: tuple[str, ...] = ()
     phase: int = 1
+    preset: str = "ensemble"
 
 
 DETAIL_TRAIN = ("--input-scale", "1", "--crop", "256", "256")
@@ -90,6 +91,7 @@ RECIPE = {
         Training(("alpha_ply", "R_ply", "r_x", "r_y"), 12, "backlit frame, varied look", 2,
                  BACKLIT_TRAIN),
         Training(("flyaways",), 8, "backlit frame, varied look", 2, BACKLIT_TRAIN),
+        Training(("raw",), 12, "backlit frame, varied look", 2, BACKLIT_TRAIN, preset="reg"),
     ),
 }
 
@@ -120,11 +122,13 @@ def render_rates(folder: Path, images: int) -> dict[str, float]:
     return rates
 
 
-def train_rate(folder: Path, kind: str, net: str, options: tuple[str, ...]) -> float:
-    """Seconds per training image and epoch of ``net`` on dataset kind ``kind``."""
+def train_rate(folder: Path, kind: str, net: str, options: tuple[str, ...],
+               preset: str = "ensemble") -> float:
+    """Seconds per training image and epoch of ``net`` (of ``preset``) on dataset kind
+    ``kind``."""
     data = folder / kind.replace(" ", "-")
     out = folder / f"run-{kind.replace(' ', '-')}-{net}-{len(options)}"
-    run(["ipm", "train", "--preset", "ensemble", "--nets", net, "--data", str(data / "train"),
+    run(["ipm", "train", "--preset", preset, "--nets", net, "--data", str(data / "train"),
          "--val", str(data / "val"), "--epochs", "1", "--blur", "1.5", "--seed", "0",
          "--lr", "1e-3", "--out", str(out), *options], threads=1)
     info = json.loads((out / net / "model.json").read_text())
@@ -141,7 +145,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="ipm-make-nets-") as tmp:
         folder = Path(tmp)
         render = render_rates(folder, args.images)
-        train = {(t.data, net, t.options): train_rate(folder, t.data, net, t.options)
+        train = {(t.data, net, t.options): train_rate(folder, t.data, net, t.options, t.preset)
                  for trainings in RECIPE.values() for t in trainings for net in t.nets}
 
     lines = [markdown_header("Dataset and training time of the shipped nets", COMMAND,

@@ -44,7 +44,7 @@ from ipm.benchmarks.real_photos import (
     relative,
     render_over,
 )
-from ipm.benchmarks.report import ENSEMBLE, load_approaches
+from ipm.benchmarks.report import ENSEMBLE, accuracy, baseline_accuracy, load_approaches
 from ipm.dataset import Record, photo_files, read_manifest
 from ipm.params import RAW_CONTINUOUS
 
@@ -58,22 +58,19 @@ def labelled(approaches: dict, folder: Path, count: int | None, crops: int,
     ply-count accuracy, on the labelled set in ``folder``."""
     records = read_manifest(folder)[:count]
     truth = [r.params for r in records]
-    base = approaches[ENSEMBLE].mean_prediction(records[0].pixel_size_mm)
-    base_mae = {k: float(np.mean([abs(base[k] - getattr(t, k)) for t in truth]))
-                for k in TARGET}
+    base = baseline_accuracy(approaches[ENSEMBLE].mean_prediction(records[0].pixel_size_mm),
+                             truth)
     preds: dict[str, list] = {name: [] for name in approaches}
     for i, r in enumerate(records):
         photo = r.photo()
         for name, ens in approaches.items():
-            preds[name].append(ens.predict(photo, crops))
+            preds[name].append(ens.predict(photo, crops).to_dict())
         progress(f"{folder}", i + 1, len(records))
     out = {}
     for name, ps in preds.items():
-        mae = {k: float(np.mean([abs(getattr(p, k) - getattr(t, k))
-                                 for p, t in zip(ps, truth, strict=True)])) for k in TARGET}
-        out[name] = {"ratio": {k: mae[k] / base_mae[k] for k in TARGET},
-                     "n_accuracy": float(np.mean([p.n == t.n
-                                                  for p, t in zip(ps, truth, strict=True)]))}
+        acc = accuracy(ps, truth, TARGET)
+        out[name] = {"ratio": {k: acc["params"][k]["mae"] / base[k]["mae"] for k in TARGET},
+                     "n_accuracy": acc["n_accuracy"]}
     return {"count": len(records), "approaches": out}
 
 

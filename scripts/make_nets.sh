@@ -57,16 +57,16 @@ if [ "$DETAIL" = 1 ]; then
     "${look[@]}"
   detail_runs=("$RUNS/make-e=-detail" "$RUNS/make-f=-detail" "$RUNS/make-g")
 fi
-common=(--preset ensemble --data "$DATA/train" --val "$DATA/val" --blur 1.5 --seed 0 --lr 1e-3
-        "${augment[@]}")
+recipe=(--data "$DATA/train" --val "$DATA/val" --blur 1.5 --seed 0 --lr 1e-3 "${augment[@]}")
+common=(--preset ensemble "${recipe[@]}")
 train() { OMP_NUM_THREADS=1 ipm train "${common[@]}" "$@"; }
 (train --nets alpha,m --epochs 18 --out "$RUNS/make-a" &&
  train --nets n,thickness --epochs 12 --out "$RUNS/make-b") & first=$!
 (train --nets alpha_ply,R_ply,r_x,r_y --epochs 12 --out "$RUNS/make-c" &&
  train --nets flyaways --epochs 8 --out "$RUNS/make-d" &&
  if [ "$RAW" = 1 ]; then
-   OMP_NUM_THREADS=1 ipm train --preset reg --nets raw --epochs 12 --data "$DATA/train" \
-     --val "$DATA/val" --blur 1.5 --lr 1e-3 --seed 0 "${augment[@]}" --out "$RUNS/make-r"
+   OMP_NUM_THREADS=1 ipm train --preset reg --nets raw --epochs 12 "${recipe[@]}" \
+     --out "$RUNS/make-r"
  fi) & second=$!
 wait "$first"; wait "$second"  # a failed training fails the script
 if [ "$DETAIL" = 1 ]; then

@@ -359,3 +359,34 @@ def test_train_bad_options(data, tmp_path):
             from ipm.nets.train import train
 
             train(TrainConfig(**{**ok, **bad}), log=lambda line: None)
+
+
+def test_gather_nets_builds_one_ensemble_from_runs(trained, photo, tmp_path):
+    """scripts/gather_nets.py (make_nets.sh's last step): a later run's net replaces the same
+    net of an earlier run, a RUN=SUFFIX run's nets are renamed, the multi-task net comes
+    after the per-parameter ones, and the folder loads and predicts."""
+    import shutil
+    from pathlib import Path
+
+    from ipm.nets.ensemble import Ensemble
+
+    ens, reg = trained["ensemble"], tmp_path / "reg"
+    shutil.copytree(trained["reg"], reg)
+    info = json.loads((reg / "flyaways" / "model.json").read_text())
+    (reg / "flyaways" / "model.json").write_text(json.dumps({**info, "mark": "later run"}))
+    script = Path(__file__).parents[1] / "scripts" / "gather_nets.py"
+    out = tmp_path / "models"
+    r = subprocess.run([sys.executable, str(script), out, ens, reg, f"{ens}=-detail"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    per_net = json.loads((ens / "ensemble.json").read_text())["nets"]
+    nets = json.loads((out / "ensemble.json").read_text())["nets"]
+    assert nets[:len(per_net)] == per_net and nets[len(per_net)] == "raw"
+    assert nets[len(per_net) + 1:] == [f"{n}-detail" for n in per_net]
+    assert json.loads((out / "flyaways" / "model.json").read_text())["mark"] == "later run"
+    weights = "model.safetensors"
+    assert (out / "m-detail" / weights).read_bytes() == (ens / "m" / weights).read_bytes()
+    assert not list(out.glob("*/checkpoint*")) and not out.with_name("models.new").exists()
+    from ipm.photo import Photo
+
+    assert Ensemble.load(out).predict(Photo.read(photo, 0.01 / SCALE)).n in range(2, 7)

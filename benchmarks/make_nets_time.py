@@ -81,6 +81,7 @@ RECIPE = {
         Training(("n", "thickness"), 12, "frame", 1),
         Training(("alpha_ply", "R_ply", "r_x", "r_y"), 12, "frame", 2),
         Training(("flyaways",), 8, "frame", 2),
+        Training(("raw",), 12, "frame", 2, preset="reg"),
         Training(("alpha",), 16, "detail window", 1, DETAIL_TRAIN, phase=2),
         Training(("alpha_ply",), 24, "frame", 1, phase=2),
         Training(("m",), 28, "detail window", 2, DETAIL_TRAIN, phase=2),

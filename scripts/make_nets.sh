@@ -11,7 +11,10 @@
 # (`ipm generate --vary-look`: lamps, backdrop, defocus, vignetting, tone, JPEG) and fiber
 # material (`--vary-material`: how much light a fiber stops, the room's fill), and every
 # training crop in another look (`ipm train --look`), since real backlit captures differ in
-# all of these.
+# all of these.  The frontlit nets are trained without `--look`: with it, the ply-count net
+# reached 31.5% on the validation set instead of 66% in the recipe's 12 epochs, and the raw
+# net was worse on all six raw-yarn parameters (benchmarks/README.md, "Photos ipm did not
+# make").
 #
 # DETAIL=1 (the default for frontlit) adds detail nets for the fiber twist `alpha` and the
 # fibers per ply `m`: trained on 3.2 x 3.2 mm windows rendered at 0.01 mm per pixel (`ipm
@@ -22,9 +25,9 @@
 # 24 epochs (make-g, replacing make-c's 12-epoch net; the model card has both nets'
 # validation error).  The shipped backlit nets were made with DETAIL=0.
 #
-# RAW=1 (the default for backlit) adds one multi-task net of every raw-yarn parameter (the
-# paper's `reg`, make-r); the ensemble takes each parameter from whichever net has the
-# lower validation error on it (`Ensemble.deciders`).  Frontlit has not been re-made with it.
+# RAW=1 (the default) adds one multi-task net of every raw-yarn parameter (the paper's
+# `reg`, make-r); the ensemble takes each parameter from whichever net has the lower
+# validation error on it (`Ensemble.deciders`).
 #
 # Every step resumes: a finished dataset or training run is left as it is, so a stopped
 # script is simply run again.  Training runs as two one-thread processes side by side (the
@@ -35,7 +38,7 @@
 set -euo pipefail
 DATA="${1:-data}"; RUNS="${2:-runs}"; OUT="${3:-nets/models}"; SETUP="${SETUP:-frontlit}"
 if [ "$SETUP" = frontlit ]; then DETAIL="${DETAIL:-1}"; else DETAIL="${DETAIL:-0}"; fi
-if [ "$SETUP" = frontlit ]; then RAW="${RAW:-0}"; else RAW="${RAW:-1}"; fi
+RAW="${RAW:-1}"
 mkdir -p "$DATA" "$RUNS"
 if [ "$SETUP" = frontlit ]; then
   look=(); augment=()

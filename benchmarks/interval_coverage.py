@@ -1,7 +1,9 @@
 """How often the fits' 80% intervals hold the truth, per parameter, re-derived from the rows
 of ``ipm compare`` reports on labelled sets (``fits.jsonl``: the neural and refined values
 and the search's profile interval) with today's :meth:`ipm.refine.fit.FitResult.intervals`
-rule, so that a change of the rule is measured on fits already made.
+rule, so that a change of the rule is measured on fits already made.  Per capture setup,
+the reports' photos are also counted together (issue 22's calibration: 30 of ipm's renders
+and 30 of another renderer's, the share within 70-90% for every parameter).
 
     python -m ipm.benchmarks.interval_coverage docs/compare:data/test \\
         docs/compare-cycles-frontlit:data/cycles-frontlit \\
@@ -48,6 +50,18 @@ def coverage(report: Path, data: Path, sigma: dict[str, float]) -> dict[str, dic
                 "photos": len(v)} for k, v in held.items() if v}
 
 
+def pooled(reports: list[dict[str, dict]]) -> dict[str, tuple[int, float]]:
+    """Per parameter, (photos, share holding the truth) of several :func:`coverage` results
+    counted together."""
+    out = {}
+    for k in RAW_CONTINUOUS:
+        parts = [r[k] for r in reports if k in r]
+        count = sum(c["photos"] for c in parts)
+        if count:
+            out[k] = (count, sum(c["holds"] * c["photos"] for c in parts) / count)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("pairs", nargs="+", help="REPORT:DATASET, an ipm compare folder and the "
@@ -61,6 +75,7 @@ def main() -> None:
     lines = [f"Share of the photos whose true value lies inside the reported {LEVEL:.0%} "
              "interval (its mean width in % of the parameter's range; where it comes from).",
              ""]
+    by_setup: dict[str, list[dict]] = {}
     for pair in args.pairs:
         report, data = (Path(p) for p in pair.split(":"))
         records = read_manifest(data)
@@ -68,9 +83,18 @@ def main() -> None:
             records[0].pixel_size_mm)
         lines += [f"## `{report}` (`{data}`)", "", "| parameter | holds | width | from |",
                   "|---|---|---|---|"]
-        for k, c in coverage(report, data, sigma).items():
+        covered = coverage(report, data, sigma)
+        by_setup.setdefault(records[0].setup, []).append(covered)
+        for k, c in covered.items():
             lines.append(f"| {k} | {c['holds']:.0%} | {100 * c['width']:.1f}% | "
                          f"{c['source']} |")
+        lines.append("")
+    for setup, reports in by_setup.items():
+        if len(reports) < 2:
+            continue
+        lines += [f"## {setup}: the {len(reports)} reports' photos together", "",
+                  "| parameter | photos | holds |", "|---|---|---|"]
+        lines += [f"| {k} | {count} | {held:.0%} |" for k, (count, held) in pooled(reports).items()]
         lines.append("")
     command = "python -m ipm.benchmarks.interval_coverage " + " ".join(sys.argv[1:])
     publish(markdown_header("Calibration of the fits' intervals", command, "numpy") + "\n"

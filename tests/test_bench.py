@@ -190,3 +190,32 @@ def test_make_nets_time_recipe_is_the_scripts():
     assert [t.preset for t in RECIPE["backlit"] if t.nets == ("raw",)] == ["reg"]
     assert [t.preset for t in RECIPE["frontlit"] if t.nets == ("raw",)] == ["reg"]
     assert "--preset reg --nets raw --epochs 12" in script
+
+
+def test_interval_coverage_counts_the_truths_inside(tmp_path):
+    """Intervals re-derived from a report's rows: a fit whose every value is the truth holds
+    it, one far off does not; two reports counted together weigh their photos."""
+    import json
+
+    from ipm.benchmarks.interval_coverage import coverage, pooled
+    from ipm.dataset import read_manifest
+    from ipm.nets.sketchdata import write_sketch_dataset
+    from ipm.params import RAW_CONTINUOUS
+
+    data = write_sketch_dataset(tmp_path / "data", 4, seed=3, scale=0.05)
+    records = read_manifest(data)
+    sigma = {k: 1e-3 for k in RAW_CONTINUOUS}
+    rows = []
+    for i, r in enumerate(records):
+        fit = r.params.to_dict() if i < 3 else r.params.replace(
+            **{k: getattr(r.params, k) * 0.5 for k in RAW_CONTINUOUS}).to_dict()
+        rows.append({"image": str(r.image), "neural": fit, "refined": fit, "improved": False,
+                     "intervals": {}})
+    report = tmp_path / "report"
+    report.mkdir()
+    (report / "fits.jsonl").write_text("\n".join(json.dumps(row) for row in rows) + "\n")
+    covered = coverage(report, data, sigma)
+    assert {k: c["holds"] for k, c in covered.items()} == {k: 0.75 for k in RAW_CONTINUOUS}
+    assert all(c["photos"] == 4 for c in covered.values())
+    other = {k: {**c, "holds": 0.25, "photos": 12} for k, c in covered.items()}
+    assert pooled([covered, other]) == {k: (16, 0.375) for k in RAW_CONTINUOUS}

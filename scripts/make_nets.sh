@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Re-makes the shipped nets (nets/models) from scratch: the datasets, then the training of the
-# nine nets of the `ensemble` preset, then the ensemble folder.  This is the
-# whole recipe of the shipped models; nets/models/README.md (the model card) gives its times
-# and accuracy.
+# nine nets of the `ensemble` preset and the multi-task `raw` net, then the ensemble folder
+# (scripts/gather_nets.py).  This is the whole recipe of the shipped models;
+# nets/models/README.md (the model card) gives its times and accuracy.
 #
 #   bash scripts/make_nets.sh [DATA=data] [RUNS=runs] [OUT=nets/models]
 #   SETUP=backlit bash scripts/make_nets.sh data-backlit runs-backlit nets/models-backlit

@@ -142,7 +142,7 @@ def test_the_nets_readings_enter_the_loss_at_their_weight(photo):
     learned = RenderObjective(renderer, small, 0.2, 4, readings=readings, readings_weight=5.0)
     nets = {k for k in learned.photo_stats if k.startswith("net_")}
     assert nets == {"net_alpha", "net_m", "net_r_x", "net_r_y", "net_alpha_ply", "net_R_ply",
-                    "net_flyaways"}
+                    "net_flyaways", "net_raw"}
     golden = preset("golden")
     d = learned.group_distances(golden, 1)
     assert learned(golden, 1) == pytest.approx(plain(golden, 1) + 5 * sum(d[k] for k in nets))

@@ -12,9 +12,8 @@
 # material (`--vary-material`: how much light a fiber stops, the room's fill), and every
 # training crop in another look (`ipm train --look`), since real backlit captures differ in
 # all of these.  The frontlit nets are trained without `--look`: with it, the ply-count net
-# reached 31.5% on the validation set instead of 66% in the recipe's 12 epochs, and the raw
-# net was worse on all six raw-yarn parameters (benchmarks/README.md, "Photos ipm did not
-# make").
+# and the raw net were worse on the validation set in the recipe's epochs (measured in
+# benchmarks/README.md, "Photos ipm did not make").
 #
 # DETAIL=1 (the default for frontlit) adds detail nets for the fiber twist `alpha` and the
 # fibers per ply `m`: trained on 3.2 x 3.2 mm windows rendered at 0.01 mm per pixel (`ipm

@@ -49,6 +49,16 @@ DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum":
 #: The thickness parameters: a stage moving them without the ply pitch is scored without the
 #: ``contour`` group (:meth:`RenderObjective.for_stage`).
 THICKNESS = ("R_ply", "r_x", "r_y")
+#: The groups that score a stage moving ``alpha_ply`` alone, per capture setup: those that
+#: read the ply period.  The core profile and the silhouette read the thickness too, and a
+#: search of the pitch alone keeps the nets' thickness: a ply twist tighter or looser than
+#: the photo's then makes up for a ply radius the nets got wrong, and from the nets' guess
+#: every group of the loss put the pitch further from the truth than the nets on validation
+#: renders, frontlit; the contour, the outline's period, helps backlit, where the outline is
+#: a crisp silhouette, and does not frontlit (``python -m ipm.benchmarks.pitch_profile --data
+#: data-frontlit/val``, the same for backlit: benchmarks/results/pitch_profile_*_val.md).
+PITCH_GROUPS = {"frontlit": ("period", "stripes"),
+                "backlit": ("period", "stripes", "contour")}
 #: The weight of the ``flyaways`` group in a search that moves flyaway parameters.
 FLYAWAY_WEIGHT = 1.0
 
@@ -144,6 +154,7 @@ class RenderObjective:
         self.weights = DEFAULT_WEIGHTS if weights is None else weights
         self.seeds_per_eval = seeds_per_eval
         self.capture = Photometric(rotation_deg=tilt_deg)
+        self.setup = renderer.options.setup
         self.readings = readings
         self.pixel_size_mm = pixel_size_mm(scale) if frame is None else frame.pixel_size_mm
         self.detail = detail
@@ -218,12 +229,12 @@ class RenderObjective:
           core band move the period and stripes groups too, and on a real photo a grid of
           flyaway amounts and lengths moved those more than the flyaway group: scored by
           every group, that stage would follow the stripes;
-        * ``alpha_ply`` alone after a stage that moved ``R_ply``: the ``period``,
-          ``stripes`` and ``contour`` groups alone.  The core profile depends on the ply
-          pitch too, and a thickness fitted at the nets' pitch holds the core profile there:
-          on the real photos the core group pulled the pitch back towards the nets' (often
-          twice the photo's stripe period) where the stripes put it at the photo's
-          (docs/real-photos-flyaways against docs/real-photos-pitch);
+        * ``alpha_ply`` alone: the groups that read the ply period, :data:`PITCH_GROUPS`
+          of the renderer's capture setup.  The core profile depends on the ply pitch
+          too, and a thickness fitted at, or kept from, the nets' pitch holds the core
+          profile there: on the real photos the core group pulled the pitch back towards
+          the nets' (often twice the photo's stripe period) where the stripes put it at the
+          photo's (docs/real-photos-flyaways against docs/real-photos-pitch);
         * the thickness (``R_ply``, ``r_x``, ``r_y``) without ``alpha_ply``: every group
           but the ``contour``.  At a pitch not yet fitted, the outline's period is wrong,
           and plies flattened to half their width bump the outline twice as often: on the
@@ -240,8 +251,8 @@ class RenderObjective:
         own."""
         if names and all(k in FLYAWAY_RANGES for k in names):
             groups = {"flyaways": FLYAWAY_WEIGHT}
-        elif tuple(names) == ("alpha_ply",) and "R_ply" in earlier:
-            groups = {k: self.weights[k] for k in ("period", "stripes", "contour")}
+        elif tuple(names) == ("alpha_ply",):
+            groups = {k: self.weights[k] for k in PITCH_GROUPS[self.setup]}
         elif set(names) & set(THICKNESS) and "alpha_ply" not in names:
             groups = {k: w for k, w in self.weights.items() if k != "contour"}
         else:

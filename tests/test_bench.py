@@ -219,3 +219,22 @@ def test_interval_coverage_counts_the_truths_inside(tmp_path):
     assert all(c["photos"] == 4 for c in covered.values())
     other = {k: {**c, "holds": 0.25, "photos": 12} for k, c in covered.items()}
     assert pooled([covered, other]) == {k: (16, 0.375) for k in RAW_CONTINUOUS}
+
+
+def test_pitch_profile_map_pitch_weighs_loss_by_its_seed_noise_against_the_prior():
+    """A swept row built by hand: the period group lowest at 6 mm, the contour at 3 mm, the
+    nets at 3 mm with sigma 0.5 and a seed noise of 0.1 at their guess.  Loss alone: each
+    group's own minimum; with the prior, 10 (v - 6)^2 + 2 (v - 3)^2 is lowest at 5.5."""
+    import numpy as np
+
+    from ipm.benchmarks.pitch_profile import map_pitch
+
+    values = np.linspace(2, 8, 25)
+    row = {"values": values.tolist(), "neural": 3.0, "sigma": 0.5, "prior_weight": 1.0,
+           "curves": {"period": ((values - 6) ** 2).tolist(),
+                      "contour": ((values - 3) ** 2).tolist()},
+           "start": {"period": [1.0, 1.1, 0.9], "contour": [0.0, 0.0, 0.0]}}
+    assert map_pitch(row, {"period": 1.0}, prior=False) == 6.0
+    assert map_pitch(row, {"contour": 1.0}, prior=False) == 3.0
+    assert map_pitch(row, {"period": 1.0}) == 5.5
+    assert map_pitch(row, {"period": 1.0, "contour": 0.0}) == 5.5

@@ -153,13 +153,15 @@ def test_the_nets_readings_enter_the_loss_at_their_weight(photo):
 def test_a_stage_of_flyaways_is_scored_by_the_flyaway_profile_alone(photo):
     """RenderObjective.for_stage: a stage of flyaway parameters alone is the flyaways group's
     distance and nothing else; the real render of a yarn with three times the flyaways and
-    long hairs reads further from the photo than the true yarn; the pitch after the
-    thickness is the stripes' period groups and the core's contour alone, the thickness
-    before the pitch every group but the contour; any other stage is the objective
-    itself, whose weights count the flyaways once a search moves them."""
+    long hairs reads further from the photo than the true yarn; the pitch alone, with or
+    without the thickness before it, is the stripes' period groups alone frontlit and those
+    and the core's contour backlit, the thickness before the pitch every group but the
+    contour; any other stage is the objective itself, whose weights count the flyaways once
+    a search moves them."""
     from ipm.photo import Photo
     from ipm.refine.objective import DEFAULT_WEIGHTS, RenderObjective, search_weights
     from ipm.render.renderer import Renderer
+    from ipm.render.scene import setup_options
 
     small = Photo.read(photo, 0.04).at_pitch(0.2)
     objective = RenderObjective(Renderer(), small, 0.2, 4,
@@ -170,11 +172,13 @@ def test_a_stage_of_flyaways_is_scored_by_the_flyaway_profile_alone(photo):
     hairy = golden.replace(g=min(300, 3 * golden.g), l_hair=3 * golden.l_hair)
     assert stage(hairy, 1) > 3 * stage(golden, 1)
     assert objective.for_stage(("alpha_ply", "g")) is objective
-    assert objective.for_stage(("alpha_ply",)) is objective  # a fit of the pitch alone
-    pitch = objective.for_stage(("alpha_ply",), earlier=("R_ply", "r_x"))
     d = objective.group_distances(golden, 1)
-    assert pitch(golden, 1) == pytest.approx(sum(DEFAULT_WEIGHTS[k] * d[k] for k in
-                                                 ("period", "stripes", "contour")))
+    for earlier in ((), ("R_ply", "r_x")):
+        pitch = objective.for_stage(("alpha_ply",), earlier)
+        assert pitch(golden, 1) == pytest.approx(d["period"] + 2 * d["stripes"])
+    backlit = RenderObjective(Renderer(options=setup_options("backlit")), small, 0.2, 4)
+    assert {k: w for k, w in backlit.stage_weights(("alpha_ply",)).items() if w} == {
+        "period": 1.0, "stripes": 2.0, "contour": DEFAULT_WEIGHTS["contour"]}
     thickness = objective.for_stage(("R_ply", "r_x", "r_y"))
     assert thickness(golden, 1) == pytest.approx(sum(w * d[k] for k, w in
                                                      objective.weights.items()

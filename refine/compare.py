@@ -160,6 +160,13 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None],
         b = float(np.mean([abs(r["refined"][k] - getattr(t, k)) for r, t in labelled]))
         out["params"][k] = {"neural": a, "refined": b,
                             "change_pct": 100 * (b / a - 1) if a > 0 else 0.0}
+        moved = [(r, t) for r, t in labelled if r["refined"][k] != r["neural"][k]]
+        if moved:  # the search's parameters: split by whether the nets' ply count is right
+            sides = {side: [(r, t) for r, t in labelled
+                            if (r["neural"]["n"] == t.n) == (side == "right")]
+                     for side in ("right", "wrong")}
+            out["params"][k]["by_ply_count"] = {side: _mae_of(k, of_side)
+                                                for side, of_side in sides.items() if of_side}
         held = [(r["intervals"][k], getattr(t, k)) for r, t in labelled
                 if k in r.get("intervals", {})]
         if held:
@@ -168,6 +175,13 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None],
                 "interval_width": float(np.mean([hi - lo for (lo, hi, _), _ in held])),
                 "interval_source": held[0][0][2]}
     return out
+
+
+def _mae_of(k: str, labelled: list[tuple[dict, YarnParams]]) -> dict:
+    """Photos, and the neural and refined MAE of parameter ``k`` over them."""
+    errors = {kind: float(np.mean([abs(r[kind][k] - getattr(t, k)) for r, t in labelled]))
+              for kind in ("neural", "refined")}
+    return {"photos": len(labelled), **errors}
 
 
 def reported(options) -> tuple[str, ...]:
@@ -222,7 +236,17 @@ def markdown(s: dict, rows: list[dict], command: str, figure: str | None) -> str
     if "n_right" in s:
         lines += [f"Ply count n right: neural {s['n_right']['neural']:.0%}, refined "
                   f"{s['n_right']['refined']:.0%}.", ""]
-    lines += ["| photo | loss neural | loss refined | improved |", "|---|---|---|---|"]
+    for k, v in s["params"].items():
+        if "by_ply_count" in v:
+            lines += [f"`{k}` (MAE, neural -> refined) on the photos whose ply count the nets "
+                      "read " + "; ".join(
+                          f"{side} ({b['photos']} photo{'' if b['photos'] == 1 else 's'}): "
+                          f"{b['neural']:.4g} -> {b['refined']:.4g}"
+                          for side, b in v["by_ply_count"].items()) + ".", ""]
+    lines += ["The losses are the fit's whole loss at both ends; a search stage decides by the "
+              "groups that see its parameters (the ply pitch alone by those that read the "
+              "ply period), so a candidate it kept can score higher here.", "",
+              "| photo | loss neural | loss refined | improved |", "|---|---|---|---|"]
     lines += [f"| {Path(r['image']).name} | {r['loss_neural']:.4f} | {r['loss_refined']:.4f} "
               f"| {'yes' if r['improved'] else 'no'} |" for r in rows]
     if s.get("failed"):

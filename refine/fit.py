@@ -279,8 +279,8 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
                         "over the re-scoring seeds" + (" (loss plus the nets' prior)"
                                                        if sigma else "")
                         + "; the neural result is kept")
-    return FitResult(neural, refined, loss_neural, result.best_loss, improved,
-                     warnings, result, time.perf_counter() - t0, tilt, sigma)
+    return FitResult(neural, refined, loss_neural, result.best_loss if improved else loss_neural,
+                     improved, warnings, result, time.perf_counter() - t0, tilt, sigma)
 
 
 def search_view(photo: Photo, scale: float) -> tuple[float, Frame | None]:

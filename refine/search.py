@@ -337,7 +337,10 @@ def search_stages(objective: Objective, start: YarnParams, opts: SearchOptions =
                   sigma: dict[str, float] | None = None) -> SearchResult:
     """:func:`search` of each of ``opts.stages`` in turn, each from the stage before's best
     (a staged search: the parameters the loss sees most first), with the objective's
-    ``for_stage`` if it has one.  Improved if any stage moved away from its start."""
+    ``for_stage`` if it has one.  Improved if any stage moved away from its start and, when
+    a stage was searched with an objective of its own, the objective's loss (mean over the
+    seeds) is no higher at the end than at the start: a stage decides by the groups that
+    see its parameters, and the whole loss must not disagree."""
     results: list[SearchResult] = []
     own: list[bool] = []  # whether a stage was searched with ``objective`` itself
     current = start
@@ -359,9 +362,12 @@ def search_stages(objective: Objective, start: YarnParams, opts: SearchOptions =
         results[0] = replace(results[0], start_loss=rescored(start))
     if not own[-1]:
         results[-1] = replace(results[-1], best_loss=rescored(current))
+    improved = any(r.improved for r in results)
+    if not all(own):
+        improved = improved and results[-1].best_loss <= results[0].start_loss
     if len(results) == 1:
-        return results[0]
-    return _combined(start, results, results[-1], any(r.improved for r in results))
+        return replace(results[0], improved=improved)
+    return _combined(start, results, results[-1], improved)
 
 
 def search_ply_counts(objective: Objective, neural: YarnParams, counts: Sequence[int],

@@ -165,3 +165,29 @@ def test_the_summary_counts_the_right_ply_counts_of_both_reconstructions():
     s = summary(rows, truth)
     assert s["n_right"] == {"neural": 0.0, "refined": 0.5}
     assert "Ply count n right: neural 0%, refined 50%." in markdown(s, rows, "c", None)
+
+
+def test_the_searched_parameter_is_split_by_whether_the_nets_ply_count_is_right():
+    """Three photos by hand: the nets' ply count right on two (alpha_ply off by 1 and 3,
+    refined to 0 and 1 off), wrong on one (off by 2, refined 4 off); the parameters the
+    search left alone are not split."""
+    from ipm.presets import preset
+    from ipm.refine.compare import markdown, summary
+
+    truth = [preset("golden"), preset("rose"), preset("red")]
+    offs = [(1.0, 0.0), (3.0, 1.0), (2.0, 4.0)]
+    rows = []
+    for i, (t, (a, b)) in enumerate(zip(truth, offs, strict=True)):
+        n = t.n if i < 2 else t.n + 1
+        rows.append({"image": f"{i}.png", "improved": True, "seconds": 1.0,
+                     "loss_neural": 1.0, "loss_refined": 0.5,
+                     "neural": t.replace(n=n, alpha_ply=t.alpha_ply + a).to_dict(),
+                     "refined": t.replace(n=n, alpha_ply=t.alpha_ply - b).to_dict()})
+    s = summary(rows, truth)
+    split = s["params"]["alpha_ply"]["by_ply_count"]
+    assert split["right"] == pytest.approx({"photos": 2, "neural": 2.0, "refined": 0.5})
+    assert split["wrong"] == pytest.approx({"photos": 1, "neural": 2.0, "refined": 4.0})
+    assert "by_ply_count" not in s["params"]["R_ply"]
+    assert ("`alpha_ply` (MAE, neural -> refined) on the photos whose ply count the nets read "
+            "right (2 photos): 2 -> 0.5; wrong (1 photo): 2 -> 4.") in markdown(s, rows, "c",
+                                                                                None)

@@ -225,6 +225,24 @@ def test_a_stage_is_searched_with_the_objectives_own_objective_for_it():
         np.mean([objective(flyaways_last.best, s) for s in (0, 1, 2)]))
 
 
+def test_a_stage_whose_best_the_whole_objective_scores_worse_is_not_an_improvement():
+    """The stage's own objective has its minimum 2 mm above the start's alpha_ply, the
+    objective itself at the start: the stage moves, but the search does not count it an
+    improvement (the fit then keeps the start)."""
+    start = TRUTH
+
+    class Disagreeing:
+        def __call__(self, p, seed):
+            return quadratic(p, seed)
+
+        def for_stage(self, names, earlier):
+            return lambda p, seed: (p.alpha_ply - start.alpha_ply - 2.0) ** 2
+
+    res = search_stages(Disagreeing(), start, SearchOptions(params=("alpha_ply",), budget=30))
+    assert abs(res.best.alpha_ply - start.alpha_ply - 2.0) < 0.3
+    assert res.best_loss > res.start_loss and not res.improved
+
+
 def test_profile_interval_is_where_the_objective_stays_near_its_lowest():
     """On a quadratic objective in noise units, z = ((x - x0) / s)^2 / 2, the points within
     PROFILE_RISE of the lowest span x0 +- s * sqrt(2 PROFILE_RISE) = x0 +- 1.28 s: the

@@ -77,17 +77,17 @@ GRID = 25
 
 
 def weightings() -> dict[str, dict[str, float]]:
-    """The group weightings compared on labelled sets: the default search's loss (every
-    group of :data:`ipm.refine.objective.DEFAULT_WEIGHTS`), the pitch stage's after a
-    thickness stage (:meth:`ipm.refine.objective.RenderObjective.stage_weights`), and the
-    groups that see the pitch, alone and together, at their default weights."""
+    """The group weightings compared on labelled sets: every group of the loss
+    (:data:`ipm.refine.objective.DEFAULT_WEIGHTS`, which scored a search of the pitch alone
+    until :data:`ipm.refine.objective.PITCH_GROUPS`), and the groups that see the pitch,
+    alone and together, at their default weights."""
     from ipm.refine.objective import DEFAULT_WEIGHTS as w
 
     def only(*groups: str) -> dict[str, float]:
         return {g: w[g] for g in groups}
 
-    return {"all groups (the default search)": {g: v for g, v in w.items() if v},
-            "period, stripes, contour (the pitch stage)": only("period", "stripes", "contour"),
+    return {"every group of the loss": {g: v for g, v in w.items() if v},
+            "period, stripes, contour": only("period", "stripes", "contour"),
             "period, stripes, silhouette": only("period", "stripes", "silhouette"),
             "period, stripes": only("period", "stripes"),
             **{f"{g} alone": only(g) for g in ("core", "period", "stripes", "silhouette",
@@ -185,7 +185,12 @@ def labelled_main(args: argparse.Namespace) -> None:
     head = markdown_header("Where the refine loss puts the ply pitch, from the nets' guess",
                            "python -m ipm.benchmarks.pitch_profile " + " ".join(sys.argv[1:]),
                            "mitsuba", "torch", "kornia")
-    publish(head + "\n" + labelled_report(rows, args.data) + "\n", args.out, rows)
+    from ipm.refine.objective import PITCH_GROUPS
+
+    note = (f"The search of `alpha_ply` alone is scored by {', '.join(PITCH_GROUPS[setup])} "
+            f"in the {setup} setup (`ipm.refine.objective.PITCH_GROUPS`).")
+    publish(head + "\n" + labelled_report(rows, args.data) + "\n\n" + note + "\n", args.out,
+            rows)
 
 
 def main() -> None:

@@ -76,12 +76,13 @@ ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_
 class SearchOptions:
     """params: parameters to search (:data:`SEARCHABLE`).  By default only alpha_ply, with
     DIRECT-L, a global search of the box: the autocorrelation has side minima in alpha_ply
-    that trap a local search such as BOBYQA.  The loss also has its minimum at the truth for
-    R_ply and r_x (docs/identifiability.md), but a second stage searching them from
-    alpha_ply's best moved them further from the truth than the nets' values
-    (docs/compare-staged), and the image statistics do not see alpha, so they keep the nets'
-    values (the detail nets' readings do, ``--detail``, but a search with them is not yet
-    measured to help: benchmarks/README.md, "Neural-only vs refined").
+    that trap a local search such as BOBYQA; it is scored by the groups of the loss that
+    read the ply period (:data:`ipm.refine.objective.PITCH_GROUPS`).  The loss also has
+    its minimum at the truth for R_ply and r_x (docs/identifiability.md), but a second
+    stage searching them from alpha_ply's best moved them further from the truth than the
+    nets' values (docs/compare-staged), and the image statistics do not see alpha, so they
+    keep the nets' values (the detail nets' readings do, ``--detail``, but a search with
+    them is not yet measured to help: benchmarks/README.md, "Neural-only vs refined").
 
     algorithm: an NLopt derivative-free algorithm.  budget: objective evaluations of the
     search (re-scoring comes on top).  time_s: wall-time bound of the search.  width:

@@ -19,7 +19,7 @@ truth is known) the sweep starts where ``ipm fit`` starts: the nets' guess of ea
 colour-matched; ``alpha_ply`` is swept over the box the default search sees
 (:func:`ipm.refine.search.search_box` with the nets' sigma) and the search's MAP objective
 (:mod:`ipm.refine.search`: the loss in units of its seed noise at the start, plus the nets'
-prior) is minimised over the grid for each weighting of :data:`WEIGHTINGS`.  The report
+prior) is minimised over the grid for each weighting of :func:`weightings`.  The report
 gives each weighting's MAE of ``alpha_ply`` against the nets'.  The per-group curves are
 written to the JSON beside the report, so another weighting is a sum, not a render.
 
@@ -168,6 +168,7 @@ def labelled_main(args: argparse.Namespace) -> None:
     from ipm.nets.ensemble import Ensemble
     from ipm.refine.compare import photos_in
     from ipm.refine.fit import FitOptions
+    from ipm.refine.objective import PITCH_GROUPS
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
@@ -185,8 +186,6 @@ def labelled_main(args: argparse.Namespace) -> None:
     head = markdown_header("Where the refine loss puts the ply pitch, from the nets' guess",
                            "python -m ipm.benchmarks.pitch_profile " + " ".join(sys.argv[1:]),
                            "mitsuba", "torch", "kornia")
-    from ipm.refine.objective import PITCH_GROUPS
-
     note = (f"The search of `alpha_ply` alone is scored by {', '.join(PITCH_GROUPS[setup])} "
             f"in the {setup} setup (`ipm.refine.objective.PITCH_GROUPS`).")
     publish(head + "\n" + labelled_report(rows, args.data) + "\n\n" + note + "\n", args.out,

@@ -45,21 +45,30 @@ GROUPS = ("period", "stripes", "contour")
 STAGE = "alpha_ply stage"
 
 
+def search_objective(photo, renderer, options):
+    """``(objective, small)``: the objective ``ipm fit`` searches ``photo`` with (its view
+    at the search's pitch, its tilt, the fit's seeds per evaluation), and the photo at that
+    pitch."""
+    from ipm.refine.fit import photo_tilt, search_view
+    from ipm.refine.objective import RenderObjective
+
+    scale, frame = search_view(photo, options.scale)
+    small = photo.at_pitch(scale)
+    return RenderObjective(renderer, small, scale, options.spp,
+                           seeds_per_eval=options.seeds_per_eval, tilt_deg=photo_tilt(small),
+                           frame=frame), small
+
+
 def profile(photo_file: Path, row: dict, pixel_size_mm: float, renderer) -> dict:
     """Per group (and the pitch stage's weighted sum), the period (mm) at its lowest."""
     from ipm.dataset import Record
     from ipm.params import YarnParams
-    from ipm.refine.fit import FitOptions, photo_tilt, search_view
-    from ipm.refine.objective import RenderObjective
+    from ipm.refine.fit import FitOptions
     from ipm.refine.stats import weighted_sum
 
     options = FitOptions()
     photo = Record(photo_file, pixel_size_mm, setup="backlit").photo()
-    scale, frame = search_view(photo, options.scale)
-    small = photo.at_pitch(scale)
-    objective = RenderObjective(renderer, small, scale, options.spp,
-                                seeds_per_eval=options.seeds_per_eval,
-                                tilt_deg=photo_tilt(small), frame=frame)
+    objective, _ = search_objective(photo, renderer, options)
     stage = objective.stage_weights(("alpha_ply",), ("R_ply",))
     params = YarnParams.from_dict(row["refined"])
     curves: dict[str, list[float]] = {g: [] for g in (*GROUPS, STAGE)}
@@ -98,17 +107,12 @@ def labelled_sweep(record, ensemble, renderer, options) -> dict:
     """The nets' guess of ``record``'s photo and each group's distance to the photo over a
     grid of ``alpha_ply`` in the default search's box (at the search's fiber seed), and at
     the guess over every seed of the search (its seed noise)."""
-    from ipm.refine.fit import match_colour, photo_tilt, search_view
-    from ipm.refine.objective import RenderObjective
+    from ipm.refine.fit import match_colour
     from ipm.refine.search import search_box
 
     photo = record.photo()
     sigma = ensemble.sigma(photo.pixel_size_mm)
-    scale, frame = search_view(photo, options.scale)
-    small = photo.at_pitch(scale)
-    objective = RenderObjective(renderer, small, scale, options.spp,
-                                seeds_per_eval=options.seeds_per_eval,
-                                tilt_deg=photo_tilt(small), frame=frame)
+    objective, small = search_objective(photo, renderer, options)
     neural = match_colour(objective, ensemble.predict(photo), small)
     search = options.search
     lo, hi = search_box(neural, ("alpha_ply",), search.width, sigma, search.box_sigmas)
@@ -130,11 +134,12 @@ def map_pitch(row: dict, weights: dict[str, float], prior: bool = True) -> float
     objective with group ``weights`` is lowest: the weighted loss in units of its seed
     noise at the nets' guess plus the nets' prior (:func:`ipm.refine.search.search`), or
     the weighted loss alone without ``prior``."""
+    from ipm.refine.search import seed_noise
+
     def total(curves: dict[str, list[float]]) -> np.ndarray:
         return sum(w * np.asarray(curves[g]) for g, w in weights.items())
 
-    loss, at_start = total(row["curves"]), total(row["start"])
-    noise = max(float(np.std(at_start, ddof=1)), 1e-3 * abs(float(np.mean(at_start))), 1e-12)
+    loss, noise = total(row["curves"]), seed_noise(total(row["start"]))
     values = np.asarray(row["values"])
     z = (values - row["neural"]) / row["sigma"]
     objective = loss / noise + (row["prior_weight"] * 0.5 * z ** 2 if prior else 0.0)
@@ -247,4 +252,3 @@ def main() -> None:
 
 if __name__ == "__main__":
     main()
-

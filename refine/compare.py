@@ -156,12 +156,12 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None],
     out["n_right"] = {kind: float(np.mean([r[kind]["n"] == t.n for r, t in labelled]))
                       for kind in ("neural", "refined")}
     for k in params:
-        a = float(np.mean([abs(r["neural"][k] - getattr(t, k)) for r, t in labelled]))
-        b = float(np.mean([abs(r["refined"][k] - getattr(t, k)) for r, t in labelled]))
+        whole = _mae_of(k, labelled)
+        a, b = whole["neural"], whole["refined"]
         out["params"][k] = {"neural": a, "refined": b,
                             "change_pct": 100 * (b / a - 1) if a > 0 else 0.0}
-        moved = [(r, t) for r, t in labelled if r["refined"][k] != r["neural"][k]]
-        if moved:  # the search's parameters: split by whether the nets' ply count is right
+        if any(r["refined"][k] != r["neural"][k] for r, _ in labelled):
+            # a parameter the search moved: split by whether the nets' ply count is right
             sides = {side: [(r, t) for r, t in labelled
                             if (r["neural"]["n"] == t.n) == (side == "right")]
                      for side in ("right", "wrong")}

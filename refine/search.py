@@ -208,6 +208,14 @@ def ply_pitch_range(p: YarnParams) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
+def seed_noise(losses: Sequence[float]) -> float:
+    """The seed noise of the loss: the spread (sample std) of its values at one point over
+    the fiber seeds, at least a thousandth of their mean.  The unit in which the search adds
+    the nets' prior (module doc)."""
+    spread = float(np.std(losses, ddof=1)) if len(losses) > 1 else 0.0
+    return max(spread, 1e-3 * abs(float(np.mean(losses))), 1e-12)
+
+
 def _logged(values: np.ndarray, logs: np.ndarray) -> np.ndarray:
     """``values`` with those where ``logs`` is set on a log scale (the others, which may be
     negative, are not passed to the logarithm)."""
@@ -237,9 +245,7 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     seen: dict[tuple, tuple[float, YarnParams]] = {}
     seeds = (opts.fiber_seed, *opts.rescore_seeds)
     start_losses = [_finite(objective(start, s)) for s in seeds]
-    # seed noise of the loss at the start: the unit in which the prior term is added
-    noise = max(float(np.std(start_losses, ddof=1)) if len(seeds) > 1 else 0.0,
-                1e-3 * abs(float(np.mean(start_losses))), 1e-12)
+    noise = seed_noise(start_losses)
 
     def penalty(p: YarnParams) -> float:
         if sigma is None:

@@ -12,8 +12,15 @@ searches it per count.  The photos are prepared as ``ipm fit`` prepares them
 (:func:`ipm.refine.fit.search_view`, the yarn's tilt measured, the fiber colour matched at
 the truth); every render uses fiber seeds other than the photo's.
 
+With ``--start nets`` the renders start from the nets' guess instead, at their stripe
+period, scored by the fit's own objective and seeds: what a fit's choice of the count
+(:func:`ipm.refine.fit.choose_ply_count`) sees, with its thickness errors, and each
+group's choice with the nets' probabilities as a fit weighs them.
+
     python -m ipm.benchmarks.ply_count_loss --data data/cycles-backlit \
         --out benchmarks/results/ply_count_loss_cycles_backlit.md
+    python -m ipm.benchmarks.ply_count_loss --start nets --data data-backlit/val \
+        --out benchmarks/results/ply_count_nets_backlit_val.md
 """
 
 from __future__ import annotations
@@ -28,68 +35,112 @@ from ipm.benchmarks.machine import markdown_header, publish
 SEEDS = (1, 2)
 
 
-def run(data: str, count: int, counts: list[int], spp: int) -> list[dict]:
+def run(data: str, count: int, counts: list[int], spp: int, start: str = "truth"
+        ) -> list[dict]:
     """Per photo: the true count and, per candidate count, each group's distance (mean over
-    :data:`SEEDS`)."""
+    the seeds, and per seed).  ``start``: ``truth`` renders the true yarn with each count
+    (fiber seeds :data:`SEEDS`); ``nets`` the nets' guess with their stripe period
+    (:func:`ipm.refine.search.same_period`), as a fit sees it (its objective and seeds),
+    and records the nets' count and probabilities."""
     from ipm.benchmarks.report import load_records
-    from ipm.errors import ParamError
+    from ipm.nets.ensemble import Ensemble
     from ipm.refine.fit import FitOptions, match_colour, photo_tilt, search_view
     from ipm.refine.objective import RenderObjective
+    from ipm.refine.search import same_period
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
     records = load_records(data, count)
-    renderer = Renderer(options=setup_options(records[0].setup))
+    setup = records[0].setup
+    renderer = Renderer(options=setup_options(setup))
+    ens = Ensemble.load(None, setup=setup) if start == "nets" else None
+    fit = FitOptions()
+    seeds = (fit.search.fiber_seed, *fit.search.rescore_seeds) if ens else SEEDS
     out = []
     for i, rec in enumerate(records):
         photo = rec.photo()
-        scale, frame = search_view(photo, FitOptions().scale)
+        scale, frame = search_view(photo, fit.scale)
         small = photo.at_pitch(scale)
         objective = RenderObjective(renderer, small, scale, spp, tilt_deg=photo_tilt(small),
-                                    frame=frame)
-        truth = match_colour(objective, rec.params, small)
-        row = {"n": truth.n, "losses": {}}
+                                    frame=frame, seeds_per_eval=fit.seeds_per_eval if ens else 1)
+        row: dict = {"n": rec.params.n, "setup": setup, "losses": {}, "per_seed": {}}
+        base = rec.params
+        if ens is not None:
+            base = ens.predict(photo, base=rec.params)
+            row |= {"nets_n": base.n, "nets_p": ens.ply_count_probabilities(photo)}
+        base = match_colour(objective, base, small)
         for n in counts:
-            try:
-                p = truth.replace(n=n, alpha_ply=truth.alpha_ply * n / truth.n)
-            except ParamError:  # the scaled pitch leaves its range
+            p = same_period(base, n)
+            if p is None:  # the scaled pitch leaves its range
                 continue
-            d = [objective.group_distances(p, s) for s in SEEDS]
+            d = [objective.group_distances(p, s) for s in seeds]
             row["losses"][n] = {g: float(np.mean([x[g] for x in d])) for g in d[0]}
+            row["per_seed"][n] = d
         out.append(row)
-        print(f"photo {i}: n {truth.n}, "
+        print(f"photo {i}: n {row['n']}, "
               + ", ".join(f"{n}: {v['silhouette']:.3f}" for n, v in row["losses"].items()),
               flush=True)
     return out
 
 
-def chosen(row: dict, weights: dict[str, float]) -> int:
-    """The count whose weighted loss is lowest."""
-    return min(row["losses"], key=lambda n: sum(w * row["losses"][n][g]
-                                                for g, w in weights.items()))
+def chosen(row: dict, weights: dict[str, float], prior: bool = False) -> int:
+    """The count whose weighted loss is lowest; with ``prior``, whose score of
+    :func:`ipm.refine.search.ply_count_scores` (the loss in seed-noise units minus the log
+    of the nets' probability) is, as a fit chooses."""
+    from ipm.refine.search import ply_count_scores
+
+    def loss(d: dict) -> float:
+        return sum(w * d[g] for g, w in weights.items())
+
+    if prior:
+        scores = ply_count_scores({int(n): [loss(d) for d in v]
+                                   for n, v in row["per_seed"].items()},
+                                  {int(n): p for n, p in row["nets_p"].items()})
+        return min(scores, key=scores.__getitem__)
+    return min((int(n) for n in row["losses"]), key=lambda n: loss(row["losses"][n]))
 
 
 def summary(rows: list[dict], data: str, command: str) -> str:
-    from ipm.refine.objective import DEFAULT_WEIGHTS
+    from ipm.refine.objective import COUNT_GROUPS, DEFAULT_WEIGHTS
 
+    nets = "nets_p" in rows[0]
     base = {g: w for g, w in DEFAULT_WEIGHTS.items() if w > 0}
     variants = {"the search's loss": base}
     variants |= {f"without {g}": {k: w for k, w in base.items() if k != g} for g in base}
     variants |= {f"{g} alone": {g: 1.0} for g in base}
     truths = sorted({r["n"] for r in rows})
-    lines = ["| loss | right, all | " + " | ".join(f"n = {n}" for n in truths) + " |",
-             "|---|---|" + "---|" * len(truths)]
-    for name, weights in variants.items():
-        right = [chosen(r, weights) == r["n"] for r in rows]
+
+    def line(name: str, picks: list[int]) -> str:
+        right = [n == r["n"] for n, r in zip(picks, rows, strict=True)]
         per = [f"{sum(ok for ok, r in zip(right, rows, strict=True) if r['n'] == n)} / "
                f"{sum(r['n'] == n for r in rows)}" for n in truths]
-        lines.append(f"| {name} | **{sum(right)} / {len(rows)}** | " + " | ".join(per) + " |")
+        return f"| {name} | **{sum(right)} / {len(rows)}** | " + " | ".join(per) + " |"
+
+    lines = ["| choice | right, all | " + " | ".join(f"n = {n}" for n in truths) + " |",
+             "|---|---|" + "---|" * len(truths)]
+    if nets:
+        lines.append(line("the nets", [r["nets_n"] for r in rows]))
+    for name, weights in variants.items():
+        lines.append(line(name, [chosen(r, weights) for r in rows]))
+        if nets:
+            lines.append(line(f"{name}, with the nets' probabilities",
+                              [chosen(r, weights, prior=True) for r in rows]))
     head = markdown_header("Can the refine loss tell the ply count?", command, "mitsuba",
                            "torch", "kornia")
-    return (head + f"\n{len(rows)} photos of `{data}`.  Each photo's true yarn rendered with "
-            f"each ply count, alpha_ply scaled to keep the stripes' period; right: the true "
-            f"count has the lowest loss (mean of fiber seeds {list(SEEDS)}).  Weights of the "
-            f"search's loss: {base}.\n\n" + "\n".join(lines) + "\n")
+    if nets:
+        groups = COUNT_GROUPS[rows[0]["setup"]]
+        how = ("the nets' guess rendered with each ply count, `alpha_ply` scaled to keep "
+               "the nets' stripe period, the fit's objective and fiber seeds; with the nets' "
+               "probabilities: the lowest loss in units of its seed noise minus the log "
+               "probability (`ipm.refine.search.ply_count_scores`).  A fit chooses by "
+               + (f"{', '.join(groups)} with the nets' probabilities" if groups
+                  else "nothing: it keeps the nets' count") + " (`COUNT_GROUPS`)")
+    else:
+        how = (f"each photo's true yarn rendered with each ply count, `alpha_ply` scaled to "
+               f"keep the stripes' period (mean of fiber seeds {list(SEEDS)})")
+    return (head + f"\n{len(rows)} photos of `{data}`: {how}; right: the true count has the "
+            f"lowest loss.  Weights of the search's loss: {base}.\n\n" + "\n".join(lines)
+            + "\n")
 
 
 def main() -> None:
@@ -101,8 +152,12 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=30)
     ap.add_argument("--counts", default="2,3,4,5,6", help="the ply counts rendered")
     ap.add_argument("--spp", type=int, default=4)
+    ap.add_argument("--start", choices=("truth", "nets"), default="truth",
+                    help="render each count from the true yarn, or from the nets' guess at "
+                    "their period as a fit does")
     args = ap.parse_args()
-    rows = run(args.data, args.count, [int(n) for n in args.counts.split(",")], args.spp)
+    rows = run(args.data, args.count, [int(n) for n in args.counts.split(",")], args.spp,
+               args.start)
     command = "python -m ipm.benchmarks.ply_count_loss " + " ".join(sys.argv[1:])
     text = summary(rows, args.data, command)
     publish(text, args.out, rows)

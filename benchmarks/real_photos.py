@@ -120,8 +120,7 @@ def main() -> None:
     rows = fit_all(args.out / "fits.jsonl", records, lambda i, photo: ensemble.predict(photo),
                    options, None if args.no_prior else ensemble.sigma(args.pixel_size),
                    progress=lambda done, total: print(f"fits {done}/{total}", flush=True),
-                   ply_counts_of=(lambda photo: ensemble.ply_counts(photo, most=args.ply_counts))
-                   if args.ply_counts > 1 else None)
+                   count_prior_of=ensemble.ply_count_probabilities)
     plies = readme_ply_counts(args.photos)
     renderer = Renderer(options=setup_options("backlit"))
     (args.out / "renders").mkdir(exist_ok=True)

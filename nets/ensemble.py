@@ -215,18 +215,15 @@ class Ensemble:
         names, pitch = self.detail_nets(pixel_size_mm)
         return (partial(self.readings, names=names), pitch) if names else None
 
-    def ply_counts(self, photo: Photo, crops: int = 3, most: int = 2, mass: float = 0.9
-                   ) -> tuple[int, ...]:
-        """The ply counts the ``n`` net finds most likely for ``photo``, most likely first:
-        at most ``most``, fewer once they hold ``mass`` of the probability (none without
-        an ``n`` net).  The search tries each (:func:`ipm.refine.fit.fit`)."""
+    def ply_count_probabilities(self, photo: Photo, crops: int = 3) -> dict[int, float]:
+        """The ``n`` net's probability of each ply count for ``photo`` (empty without an
+        ``n`` net): the prior of a fit's choice of the count
+        (:func:`ipm.refine.fit.choose_ply_count`)."""
         prob = self.outputs(photo, crops, names=("n",)).get("n")
         if prob is None:
-            return ()
-        order = np.argsort(-prob, kind="stable")
-        keep = 1 + int(np.searchsorted(np.cumsum(prob[order]), mass))
+            return {}
         classes = self.chosen(photo.pixel_size_mm)["n"].config.spec.classes
-        return tuple(int(classes[i]) for i in order[:max(1, min(most, keep))])
+        return {int(c): float(q) for c, q in zip(classes, prob, strict=True)}
 
     def predict(self, photo: Photo, crops: int = 3, base: YarnParams | None = None
                 ) -> YarnParams:

@@ -37,6 +37,9 @@ _PARAMS_HELP = ("parameters to search (any but the ply count n; m is rounded), "
 _MATCH_SIZE_HELP = ("start the search from the nets' yarn scaled (R_ply, r_x, r_y by one "
                     "factor) to the photo's core width, keeping the nets' proportions: for "
                     "yarns thinner or thicker than the nets know")
+_NETS_COUNT_HELP = ("keep the nets' ply count; by default a backlit fit first chooses it by "
+                    "the core's outline and the nets' probabilities (ipm.refine.objective."
+                    "COUNT_GROUPS)")
 _POLISH_HELP = ("evaluations of a local search (BOBYQA) from the best of each stage of two "
                 "or more parameters, beyond the budget: a global search's budget only "
                 "samples a coarse grid there (0: none)")
@@ -49,7 +52,9 @@ def fit(
                                       "renders and compare.png")] = Path("fit"),
     refine: Annotated[bool, typer.Option("--refine/--no-refine", help="refine the nets' "
                                          "guess by render-and-compare: searches the ply "
-                                         "twist alpha_ply (measured in docs/compare)")]
+                                         "twist alpha_ply, backlit from the ply count "
+                                         "the core's outline chooses (measured in "
+                                         "benchmarks/README.md)")]
     = False,
     pixel_size: Annotated[float | None, typer.Option(help="mm per photo pixel at the yarn; "
                                                      "default: --calibration, or the ipm "
@@ -84,6 +89,8 @@ def fit(
     learned: Annotated[float, typer.Option(min=0, help=_LEARNED_HELP)] = DEFAULT_LEARNED,
     detail: Annotated[float, typer.Option(min=0, help=_DETAIL_HELP)] = 0.0,
     match_size: Annotated[bool, typer.Option("--match-size", help=_MATCH_SIZE_HELP)] = False,
+    nets_ply_count: Annotated[bool, typer.Option("--nets-ply-count", help=_NETS_COUNT_HELP)]
+    = False,
 ) -> None:
     """Infer a yarn's parameters from a photo: the neural ensemble, and with --refine a
     render-and-compare search; writes params.json (neural and refined parameters, their
@@ -96,7 +103,7 @@ def fit(
     options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
                                               budget=budget, time_s=time_limit, polish=polish),
                          ply_counts=ply_counts, learned=learned, detail=detail,
-                         match_size=match_size)
+                         match_size=match_size, choose_count=not nets_ply_count)
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
                                          "params.json", "knit.png", "knit.json")], [photo])
     if knit is not None:
@@ -144,8 +151,7 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
                      on_eval=lambda i, loss, best: bar.update(task, completed=i,
                                                              best=f"{best:.4f}"),
                      sigma=ensemble.sigma(pixel_size) if prior else None,
-                     ply_counts=(ensemble.ply_counts(shot, most=options.ply_counts)
-                                 if options.ply_counts > 1 else ()),
+                     count_prior=ensemble.ply_count_probabilities(shot),
                      readings=ensemble.readings,
                      detail=ensemble.detail_readings(pixel_size))
     if w := ensemble.upsampling_warning(pixel_size):
@@ -225,6 +231,8 @@ def compare(
     learned: Annotated[float, typer.Option(min=0, help=_LEARNED_HELP)] = DEFAULT_LEARNED,
     detail: Annotated[float, typer.Option(min=0, help=_DETAIL_HELP)] = 0.0,
     match_size: Annotated[bool, typer.Option("--match-size", help=_MATCH_SIZE_HELP)] = False,
+    nets_ply_count: Annotated[bool, typer.Option("--nets-ply-count", help=_NETS_COUNT_HELP)]
+    = False,
 ) -> None:
     """Neural-only vs refined over many photos: `ipm fit --refine` on each, then a table
     (CSV and Markdown) and a figure of photo | neural | refined."""
@@ -235,11 +243,13 @@ def compare(
     from ipm.nets.ensemble import Ensemble
     from ipm.refine import compare as cmp
     from ipm.refine.fit import FitOptions
+    from ipm.refine.objective import COUNT_GROUPS
 
     options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
                                               budget=budget, polish=polish),
                          ply_counts=ply_counts,
-                         learned=learned, detail=detail, match_size=match_size)
+                         learned=learned, detail=detail, match_size=match_size,
+                         choose_count=not nets_ply_count)
     listed = cmp.photos_in(photos, pixel_size, count, setup)
     setup = listed[0].setup
     ensemble = Ensemble.load(models, setup=setup)
@@ -255,6 +265,8 @@ def compare(
     settings |= {"ply_counts": ply_counts} if ply_counts > 1 else {}  # (older: one)
     settings |= {"polish": polish} if polish else {}
     settings |= {"match_size": True} if match_size else {}
+    count_groups = COUNT_GROUPS[setup] if options.choose_count else ()
+    settings |= {"count_groups": list(count_groups)} if count_groups else {}
     later = options.search.later
     settings |= {"later_stages": [list(s) for s in later]} if later else {}
     saved = out / "settings.json"

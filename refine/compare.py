@@ -73,33 +73,34 @@ def photos_in(folder: Path, pixel_size_mm: float, count: int | None = None,
 
 
 def fit_row(record: Record, photo: Photo, neural: YarnParams, renderer, options,
-            sigma: dict[str, float] | None, ply_counts: Sequence[int] = (),
+            sigma: dict[str, float] | None, count_prior: dict[int, float] | None = None,
             readings=None, detail=None) -> dict:
     """``ipm fit --refine`` on one photo, as one JSON-ready row."""
     from ipm.refine.fit import fit
 
-    res = fit(photo, neural, renderer, options, sigma=sigma, ply_counts=ply_counts,
-              readings=readings, detail=detail)
+    res = fit(photo, neural, renderer, options, sigma=sigma, readings=readings, detail=detail,
+              count_prior=count_prior)
     return {"image": str(record.image), "neural": res.neural.to_dict(),
             "refined": res.refined.to_dict(), "loss_neural": res.loss_neural,
             "loss_refined": res.loss_refined, "improved": bool(res.improved),
             "tilt_deg": res.tilt_deg, "warnings": res.warnings,
             "trace": res.search.trace if res.search else [], "seconds": res.seconds,
-            "intervals": {k: list(v) for k, v in res.intervals().items()}}
+            "intervals": {k: list(v) for k, v in res.intervals().items()},
+            "ply_count_scores": {str(n): v for n, v in res.count_scores.items()}}
 
 
 def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Photo],
             YarnParams], options, sigma: dict[str, float] | None,
             prep: PhotoPrep = PhotoPrep(),
             progress: Callable[[int, int], None] | None = None,
-            ply_counts_of: Callable[[Photo], Sequence[int]] | None = None,
+            count_prior_of: Callable[[Photo], dict[int, float]] | None = None,
             readings=None, detail_of: Callable[[Photo], tuple | None] | None = None
             ) -> list[dict]:
     """Fit every photo (all of one capture setup), resuming from the rows already in the
     JSON-lines file ``path``.
 
-    ``neural_of(i, photo)`` gives the nets' parameters of photo ``i``, ``ply_counts_of``
-    the nets' likely ply counts for the search to try (default: the nets' one), ``readings``
+    ``neural_of(i, photo)`` gives the nets' parameters of photo ``i``, ``count_prior_of``
+    the nets' probability of each ply count (default: none, the nets' count), ``readings``
     the nets' readings for the loss and ``detail_of`` the detail nets' for a photo
     (:func:`ipm.refine.fit.fit`).  A row is appended
     (and flushed) as each fit ends; a photo that cannot be read or used gets a row with its
@@ -131,7 +132,7 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
             else:
                 renderer = renderer or Renderer(options=setup_options(photo.setup))
                 row = fit_row(photos[i], photo, neural, renderer, options, sigma,
-                              ply_counts_of(photo) if ply_counts_of else (), readings,
+                              count_prior_of(photo) if count_prior_of else None, readings,
                               detail_of(photo) if detail_of else None)
             f.write(json.dumps(row) + "\n")
             f.flush()
@@ -290,8 +291,7 @@ def compare(photos: Sequence[Record], out: Path, ensemble, options, prior: bool 
     out.mkdir(parents=True, exist_ok=True)
     every = fit_all(out / FITS, photos, lambda i, photo: ensemble.predict(photo), options,
         ensemble.sigma(photos[0].pixel_size_mm) if prior and photos else None, prep,
-        progress, (lambda photo: ensemble.ply_counts(photo, most=options.ply_counts))
-        if options.ply_counts > 1 else None, ensemble.readings,
+        progress, ensemble.ply_count_probabilities, ensemble.readings,
         lambda photo: ensemble.detail_readings(photo.pixel_size_mm))
     fitted = [i for i, r in enumerate(every) if "error" not in r]
     rows, truth, photos = ([seq[i] for i in fitted] for seq in (every, truth, photos))

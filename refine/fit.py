@@ -21,6 +21,7 @@ from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams, clipped
 from ipm.photo import Photo, linear_to_srgb, srgb_to_linear
 from ipm.refine.objective import (
+    COUNT_GROUPS,
     THICKNESS,
     Detail,
     Readings,
@@ -35,6 +36,9 @@ from ipm.refine.search import (
     LEVEL,
     SearchOptions,
     SearchResult,
+    likeliest_counts,
+    ply_count_scores,
+    same_period,
     search_ply_counts,
 )
 from ipm.refine.stats import centre_rows, core_width, yarn_centre, yarn_tilt
@@ -60,7 +64,9 @@ class FitOptions:
     readings of a window at their pitch, rendered per evaluation besides the search's view
     (``detail`` of :func:`fit`, :class:`ipm.refine.objective.Detail`; 0: none).
     match_size: start the search from the nets' yarn scaled to the photo's core width
-    (:func:`match_size`) instead of from the nets' yarn itself."""
+    (:func:`match_size`) instead of from the nets' yarn itself.  choose_count: in a setup
+    with :data:`ipm.refine.objective.COUNT_GROUPS`, start from the ply count those groups
+    and the nets' probabilities choose (:func:`choose_ply_count`) instead of the nets'."""
 
     scale: float = 0.2
     spp: int = 4
@@ -72,6 +78,7 @@ class FitOptions:
     learned: float = DEFAULT_LEARNED
     detail: float = 0.0
     match_size: bool = False
+    choose_count: bool = True
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.scale <= 1 or not 0.05 <= self.display_scale <= 1:
@@ -120,6 +127,7 @@ class FitResult:
     seconds: float = 0.0
     tilt_deg: float = 0.0
     sigma: dict[str, float] | None = None
+    count_scores: dict[int, float] = field(default_factory=dict)  # choose_ply_count's
 
     def intervals(self) -> dict[str, tuple[float, float, str]]:
         """A :data:`LEVEL` interval per continuous raw-yarn parameter of the refined result,
@@ -148,6 +156,8 @@ class FitResult:
             "improved": self.improved, "warnings": self.warnings,
             "intervals": {"level": LEVEL, **{k: list(v) for k, v in self.intervals().items()}},
             "evaluations": self.search.evaluations if self.search else 0,
+            **({"ply_count_scores": {str(n): round(v, 3) for n, v in self.count_scores.items()}}
+               if self.count_scores else {}),
             "seconds": round(self.seconds, 2),
             "settings": {**asdict(options), "pixel_size_mm": pixel_size_mm, "setup": setup,
                          "tilt_deg": round(self.tilt_deg, 3), "prior_sigma": self.sigma},
@@ -223,20 +233,47 @@ def match_size(objective: RenderObjective, params: YarnParams, photo: np.ndarray
     return params
 
 
+def choose_ply_count(objective: RenderObjective, start: YarnParams, prior: dict[int, float],
+                     seeds: Sequence[int]) -> tuple[YarnParams, dict[int, float]]:
+    """The ply count of ``start`` chosen by the setup's :data:`COUNT_GROUPS` and the nets'
+    probabilities ``prior`` (:func:`ipm.refine.search.ply_count_scores` of the groups' loss
+    over ``seeds``), each count with ``start``'s stripe period (:func:`same_period`), and
+    the scores; ``start`` and no scores where the setup has no such groups.
+
+    Why the period kept: the stripes' period ``alpha_ply / n`` is what the nets and the
+    pitch search read best; a count is then judged by what differs between counts at one
+    period.  Why the nets' probabilities: a count they find unlikely needs the loss's word
+    by more than its seed noise."""
+    groups = COUNT_GROUPS[objective.setup]
+    candidates = {n: same_period(start, n) for n in prior}
+    candidates = {n: p for n, p in candidates.items() if p is not None}
+    if not groups or len(candidates) < 2:
+        return start, {}
+    weights = {k: 1.0 if k in groups else 0.0 for k in objective.photo_stats}
+    scores = ply_count_scores({n: [objective(p, s, weights) for s in seeds]
+                               for n, p in candidates.items()}, prior)
+    best = min(scores, key=scores.__getitem__)
+    return (start if best == start.n else candidates[best]), scores
+
+
 def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOptions(),
         refine: bool = True, on_eval: Callable[[int, float, float], None] | None = None,
-        sigma: dict[str, float] | None = None, ply_counts: Sequence[int] = (),
-        readings: Readings | None = None, detail: tuple[Readings, float] | None = None
-        ) -> FitResult:
+        sigma: dict[str, float] | None = None, readings: Readings | None = None,
+        detail: tuple[Readings, float] | None = None,
+        count_prior: dict[int, float] | None = None) -> FitResult:
     """Fit ``photo`` starting from the nets' parameters ``neural``; ``sigma``, the nets'
     error per parameter (:meth:`ipm.nets.ensemble.Ensemble.sigma`), makes the search a MAP
-    estimate around them (:mod:`ipm.refine.search`).  ``ply_counts``: the nets' likely ply
-    counts (:meth:`ipm.nets.ensemble.Ensemble.ply_counts`); the search runs from the nets'
-    guess with each of the first ``options.ply_counts`` of them and keeps the lowest loss.
+    estimate around them (:mod:`ipm.refine.search`).
     ``readings``: the nets' readings (:meth:`ipm.nets.ensemble.Ensemble.readings`), added
     to the loss at weight ``options.learned`` when that is above 0.  ``detail``: the detail
     nets' readings and pitch (:meth:`ipm.nets.ensemble.Ensemble.detail_readings`; None for
-    a photo too coarse for them), compared on a window at weight ``options.detail``."""
+    a photo too coarse for them), compared on a window at weight ``options.detail``.
+    ``count_prior``: the nets' probability of each ply count
+    (:meth:`ipm.nets.ensemble.Ensemble.ply_count_probabilities`); with
+    ``options.choose_count`` the search starts from the count :func:`choose_ply_count`
+    chooses, and with ``options.ply_counts`` above 1 it runs from there with each of the
+    likeliest counts too and keeps the lowest loss (:func:`search_ply_counts`).  The refined
+    result differs from the nets' only if its loss is lower."""
     t0 = time.perf_counter()
     warnings = [w for w in (exposure_warning(photo.image),) if w]
     scale, frame = search_view(photo, options.scale)
@@ -265,22 +302,31 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         loss = _mean_loss(objective, neural, options.search)
         return FitResult(neural, neural, loss, loss, False, warnings,
                          seconds=time.perf_counter() - t0, tilt_deg=tilt, sigma=sigma)
-    counts = list(dict.fromkeys([neural.n, *ply_counts]))[:options.ply_counts]
     start = (match_colour(objective, match_size(objective, neural, small), small)
              if options.match_size else neural)
-    result = search_ply_counts(objective, start, counts, options.search, on_eval, sigma)
+    scores: dict[int, float] = {}
+    if options.choose_count and count_prior:
+        start, scores = choose_ply_count(objective, start, count_prior,
+                                    (options.search.fiber_seed, *options.search.rescore_seeds))
+    counts = list(dict.fromkeys([start.n, *likeliest_counts(count_prior or {},
+                                                            options.ply_counts)]))
+    result = search_ply_counts(objective, start, counts[:options.ply_counts], options.search,
+                               on_eval, sigma)
+    best, best_loss = ((result.best, result.best_loss) if result.improved
+                       else (start, result.start_loss))
     loss_neural, improved = result.start_loss, result.improved
-    if start is not neural:  # the sized start counts only if its loss is lower too
+    if start is not neural:  # another start counts only if its loss is lower too
         loss_neural = _mean_loss(objective, neural, options.search)
-        improved = result.best_loss < loss_neural
-    refined = match_colour(objective, result.best, small) if improved else neural
+        improved = best_loss < loss_neural
+    refined = match_colour(objective, best, small) if improved else neural
     if not improved:
         warnings.append("the search found no parameters with a lower loss than the nets' "
                         "over the re-scoring seeds" + (" (loss plus the nets' prior)"
                                                        if sigma else "")
                         + "; the neural result is kept")
-    return FitResult(neural, refined, loss_neural, result.best_loss if improved else loss_neural,
-                     improved, warnings, result, time.perf_counter() - t0, tilt, sigma)
+    return FitResult(neural, refined, loss_neural, best_loss if improved else loss_neural,
+                     improved, warnings, result, time.perf_counter() - t0, tilt, sigma,
+                     scores)
 
 
 def search_view(photo: Photo, scale: float) -> tuple[float, Frame | None]:

@@ -59,6 +59,14 @@ THICKNESS = ("R_ply", "r_x", "r_y")
 #: data-frontlit/val``, the same for backlit: benchmarks/results/pitch_profile_*_val.md).
 PITCH_GROUPS = {"frontlit": ("period", "stripes"),
                 "backlit": ("period", "stripes", "contour")}
+#: The groups that choose the ply count before the search, per capture setup
+#: (:func:`ipm.refine.fit.choose_ply_count`); none: the nets' count stands.  Backlit, the
+#: silhouette, whose two edges move together for an even count and against each other for
+#: an odd one; with the count's stripe period kept from the nets' guess, the other groups
+#: chose the count worse than it, and frontlit no group chose it better than the nets
+#: (``python -m ipm.benchmarks.ply_count_loss --start nets --data data-backlit/val``, the
+#: same for frontlit: benchmarks/results/ply_count_nets_*_val.md).
+COUNT_GROUPS = {"frontlit": (), "backlit": ("silhouette",)}
 #: The weight of the ``flyaways`` group in a search that moves flyaway parameters.
 FLYAWAY_WEIGHT = 1.0
 

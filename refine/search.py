@@ -49,7 +49,9 @@ PROFILE_RISE = 0.5 * float(chi2.ppf(LEVEL, 1))
 #: against docs/compare, before the loss's ``silhouette`` group).  With that group, two
 #: counts and a thickness stage chose the count better on the real photos and on Cycles
 #: renders (docs/real-photos-silhouette, docs/compare-cycles-backlit-silhouette) at twice
-#: the time; not yet measured with the default search, so the default stays one.
+#: the time; not yet measured with the default search, so the default stays one.  (A
+#: backlit fit chooses the count it starts from before any search, by the silhouette at
+#: the nets' stripe period: :func:`ipm.refine.fit.choose_ply_count`.)
 DEFAULT_PLY_COUNTS = 1
 #: The weight of the nets' readings in a fit's loss (:class:`ipm.refine.fit.FitOptions`).
 DEFAULT_LEARNED = 0.0
@@ -214,6 +216,34 @@ def seed_noise(losses: Sequence[float]) -> float:
     the nets' prior (module doc)."""
     spread = float(np.std(losses, ddof=1)) if len(losses) > 1 else 0.0
     return max(spread, 1e-3 * abs(float(np.mean(losses))), 1e-12)
+
+
+def same_period(p: YarnParams, n: int) -> YarnParams | None:
+    """``p`` with ``n`` plies and the ply pitch scaled to keep the ply-stripe period
+    ``alpha_ply / n`` the image shows; None if that pitch leaves its interval."""
+    iv = PAPER_INTERVALS["alpha_ply"]
+    pitch = p.alpha_ply * n / p.n
+    return p.replace(n=n, alpha_ply=pitch) if iv.lo <= pitch <= iv.hi else None
+
+
+def likeliest_counts(prior: dict[int, float], most: int, mass: float = 0.9
+                     ) -> tuple[int, ...]:
+    """The ply counts most likely under ``prior`` (the nets' probabilities), most likely
+    first: at most ``most``, fewer once they hold ``mass`` of the probability."""
+    order = sorted(prior, key=lambda n: -prior[n])
+    keep = 1 + int(np.searchsorted(np.cumsum([prior[n] for n in order]), mass))
+    return tuple(order[:max(1, min(most, keep))])
+
+
+def ply_count_scores(losses: dict[int, Sequence[float]], prior: dict[int, float]
+                     ) -> dict[int, float]:
+    """Per ply count ``n``: the mean of its ``losses`` (one per fiber seed) in units of the
+    loss's seed noise (:func:`seed_noise`, averaged over the counts), minus the log of the
+    nets' probability ``prior[n]``: the negative log posterior of the count, in the units
+    of the search's MAP objective (module doc).  The lowest is the count a fit keeps."""
+    noise = float(np.mean([seed_noise(v) for v in losses.values()]))
+    return {n: float(np.mean(v)) / noise - float(np.log(max(prior.get(n, 0.0), 1e-6)))
+            for n, v in losses.items()}
 
 
 def _logged(values: np.ndarray, logs: np.ndarray) -> np.ndarray:

@@ -289,3 +289,44 @@ def test_match_size_scales_the_thickness_to_the_photo_core_keeping_proportions()
         ratios = [getattr(sized, k) / getattr(start, k) for k in ("R_ply", "r_x", "r_y")]
         assert max(ratios) == pytest.approx(min(ratios))
         assert sized.replace(R_ply=start.R_ply, r_x=start.r_x, r_y=start.r_y) == start
+
+
+class _CountObjective:
+    """Its ``silhouette`` group is lowest at 3 plies with the photo's stripe period
+    (``alpha_ply / n`` = 2 mm), by ``depth`` per squared ply, with seed noise 0.01 (seeds
+    0, 1, 2: std 0.0058); every other group is flat."""
+
+    photo_stats = {"core": None, "silhouette": None}
+
+    def __init__(self, setup: str, depth: float = 1.0):
+        self.setup, self.depth = setup, depth
+        self.calls = []
+
+    def __call__(self, p, seed, weights=None):
+        self.calls.append((p, weights))
+        assert p.alpha_ply / p.n == pytest.approx(2.0)  # every count at the start's period
+        sil = self.depth * (p.n - 3) ** 2 + 0.01 * (seed % 2)
+        return (weights or {}).get("silhouette", 1.0) * sil + (weights or {}).get("core", 1.0)
+
+
+def test_a_backlit_fit_chooses_the_ply_count_by_the_silhouette_and_the_nets_prior():
+    """From the nets' 2 plies at a 2 mm stripe period, a silhouette lowest at 3 by far more
+    than its seed noise takes the count to 3 at the same period; one lower at 3 by 1.7
+    units of its noise does not outweigh the nets' 0.9 against 0.05 (-ln: 0.1 against 3.0);
+    frontlit, no group chooses and the nets' count stands."""
+    from ipm.refine.fit import choose_ply_count
+
+    start = preset("golden").replace(n=2, alpha_ply=4.0)
+    prior = {2: 0.6, 3: 0.2, 4: 0.1, 5: 0.05, 6: 0.05}
+    objective = _CountObjective("backlit")
+    chosen, scores = choose_ply_count(objective, start, prior, (0, 1, 2))
+    assert chosen.n == 3 and chosen.alpha_ply == pytest.approx(6.0)
+    assert chosen.replace(n=2, alpha_ply=4.0) == start
+    assert set(scores) == {2, 3, 4, 5, 6} and min(scores, key=scores.get) == 3
+    assert {k for _, w in objective.calls for k, v in w.items() if v} == {"silhouette"}
+    shallow = _CountObjective("backlit", depth=0.01)
+    kept, _ = choose_ply_count(shallow, start, {2: 0.9, 3: 0.05, 4: 0.05}, (0, 1, 2))
+    assert kept is start
+    frontlit = _CountObjective("frontlit")
+    assert choose_ply_count(frontlit, start, prior, (0, 1, 2)) == (start, {})
+    assert not frontlit.calls

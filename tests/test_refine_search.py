@@ -10,6 +10,9 @@ from ipm.prior import FLYAWAY_RANGES
 from ipm.refine.search import (
     ALGORITHMS,
     SearchOptions,
+    likeliest_counts,
+    ply_count_scores,
+    same_period,
     search,
     search_box,
     search_ply_counts,
@@ -158,6 +161,36 @@ def test_ply_counts_each_searched_and_the_lowest_loss_kept():
     # when no count beats the nets' guess, the guess stays
     kept = search_ply_counts(period, TRUTH, [TRUTH.n, 2], opts, None, None)
     assert not kept.improved or kept.best.n == TRUTH.n
+
+
+def test_a_ply_count_scores_its_loss_in_seed_noise_units_less_the_log_prior():
+    """Two counts whose losses spread by 0.1414 over two seeds (std of 1.0 and 1.2, of 0.5
+    and 0.7): 1.1 / 0.1414 - ln 0.9 = 7.88 against 0.6 / 0.1414 - ln 0.1 = 6.55, so the
+    lower loss wins against a nets' 0.9; against a nets' 0.9999 (-ln 1e-4 = 9.21) it loses."""
+    losses = {2: [1.0, 1.2], 3: [0.5, 0.7]}
+    scores = ply_count_scores(losses, {2: 0.9, 3: 0.1})
+    assert scores[2] == pytest.approx(7.883, abs=2e-3)
+    assert scores[3] == pytest.approx(6.545, abs=2e-3)
+    sure = ply_count_scores(losses, {2: 0.9999, 3: 1e-4})
+    assert min(sure, key=sure.get) == 2
+
+
+def test_another_ply_count_keeps_the_stripe_period_within_the_pitch_interval():
+    start = TRUTH.replace(n=2, alpha_ply=4.0)
+    three = same_period(start, 3)
+    assert three.n == 3 and three.alpha_ply == pytest.approx(6.0)
+    assert three.replace(n=2, alpha_ply=4.0) == start  # nothing else changes
+    hi = PAPER_INTERVALS["alpha_ply"].hi
+    assert same_period(TRUTH.replace(n=2, alpha_ply=0.6 * hi), 4) is None
+
+
+def test_the_likeliest_counts_stop_at_the_mass_or_the_number_asked():
+    prior = {2: 0.1, 3: 0.6, 4: 0.25, 5: 0.05}
+    assert likeliest_counts(prior, most=4, mass=1.0) == (3, 4, 2, 5)
+    assert likeliest_counts(prior, most=2) == (3, 4)
+    assert likeliest_counts(prior, most=4, mass=0.8) == (3, 4)  # 0.85 >= 0.8 after two
+    assert likeliest_counts(prior, most=4, mass=0.0) == (3,)
+    assert likeliest_counts({}, most=3) == ()
 
 
 def test_staged_search_starts_each_stage_from_the_one_before():

@@ -156,6 +156,11 @@ def summary(rows: list[dict], truth: Sequence[YarnParams | None],
         return out
     out["n_right"] = {kind: float(np.mean([r[kind]["n"] == t.n for r, t in labelled]))
                       for kind in ("neural", "refined")}
+    changed = [(r["neural"]["n"] == t.n, r["refined"]["n"] == t.n) for r, t in labelled
+               if r["refined"]["n"] != r["neural"]["n"]]
+    out["n_changed"] = {"to_right": sum(b for _, b in changed),
+                        "to_wrong": sum(a for a, _ in changed),
+                        "wrong_to_wrong": sum(not (a or b) for a, b in changed)}
     for k in params:
         whole = _mae_of(k, labelled)
         a, b = whole["neural"], whole["refined"]
@@ -235,8 +240,13 @@ def markdown(s: dict, rows: list[dict], command: str, figure: str | None) -> str
                          f"{v['change_pct']:+.0f}% | {held} |")
         lines.append("")
     if "n_right" in s:
+        c = s.get("n_changed", {})
         lines += [f"Ply count n right: neural {s['n_right']['neural']:.0%}, refined "
-                  f"{s['n_right']['refined']:.0%}.", ""]
+                  f"{s['n_right']['refined']:.0%}" + (
+                      f"; the fit changed the nets' count on {sum(c.values())}: wrong to right "
+                      f"on {c['to_right']}, right to wrong on {c['to_wrong']}, wrong to "
+                      f"another wrong on {c['wrong_to_wrong']}" if c and any(c.values())
+                      else "") + ".", ""]
     for k, v in s["params"].items():
         if "by_ply_count" in v:
             lines += [f"`{k}` (MAE, neural -> refined) on the photos whose ply count the nets "

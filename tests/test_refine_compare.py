@@ -153,18 +153,23 @@ def test_the_report_shows_the_flyaway_parameters_a_search_moved():
 
 
 def test_the_summary_counts_the_right_ply_counts_of_both_reconstructions():
+    """Three photos by hand: the nets wrong, the fit right; both wrong alike; the nets
+    right, the fit wrong."""
     from ipm.presets import preset
     from ipm.refine.compare import markdown, summary
 
-    truth = [preset("golden"), preset("rose")]
+    truth = [preset("golden"), preset("rose"), preset("red")]
     wrong = [t.replace(n=t.n + 1) for t in truth]
-    rows = [{"image": f"{i}.png", "neural": w.to_dict(), "refined": t.to_dict(),
+    pairs = [(wrong[0], truth[0]), (wrong[1], wrong[1]), (truth[2], wrong[2])]
+    rows = [{"image": f"{i}.png", "neural": a.to_dict(), "refined": b.to_dict(),
              "improved": True, "seconds": 1.0, "loss_neural": 1.0, "loss_refined": 0.5}
-            for i, (t, w) in enumerate(zip(truth, wrong, strict=True))]
-    rows[1]["refined"] = wrong[1].to_dict()
+            for i, (a, b) in enumerate(pairs)]
     s = summary(rows, truth)
-    assert s["n_right"] == {"neural": 0.0, "refined": 0.5}
-    assert "Ply count n right: neural 0%, refined 50%." in markdown(s, rows, "c", None)
+    assert s["n_right"] == pytest.approx({"neural": 1 / 3, "refined": 1 / 3})
+    assert s["n_changed"] == {"to_right": 1, "to_wrong": 1, "wrong_to_wrong": 0}
+    assert ("Ply count n right: neural 33%, refined 33%; the fit changed the nets' count on "
+            "2: wrong to right on 1, right to wrong on 1, wrong to another wrong on 0."
+            ) in markdown(s, rows, "c", None)
 
 
 def test_the_searched_parameter_is_split_by_whether_the_nets_ply_count_is_right():

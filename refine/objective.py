@@ -8,6 +8,7 @@ is deterministic for a given fiber seed: the render seed is fixed.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from functools import partial
@@ -67,6 +68,8 @@ PITCH_GROUPS = {"frontlit": ("period", "stripes"),
 #: (``python -m ipm.benchmarks.ply_count_loss --start nets --data data-backlit/val``, the
 #: same for frontlit: benchmarks/results/ply_count_nets_*_val.md).
 COUNT_GROUPS = {"frontlit": (), "backlit": ("silhouette",)}
+#: How many (params, seed) pairs' render statistics a :class:`RenderObjective` keeps.
+STATS_KEPT = 64
 #: The weight of the ``flyaways`` group in a search that moves flyaway parameters.
 FLYAWAY_WEIGHT = 1.0
 
@@ -146,6 +149,9 @@ class RenderObjective:
     photo's smaller field of view, at its pitch, :func:`ipm.refine.fit.search_view`)
     instead of the yarn frame at ``scale``.  ``detail``: a second view rendered and compared
     per evaluation (:class:`Detail`).  ``evaluations`` counts renders of the main view.
+    The statistics of the last :data:`STATS_KEPT` (params, seed) pairs are kept: a fit
+    scores its start under several weightings (the ply count's choice, the search's start,
+    the whole-loss rule), and the render of one pair is always the same.
     """
 
     def __init__(self, renderer, photo: np.ndarray, scale: float, spp: int,
@@ -166,6 +172,7 @@ class RenderObjective:
         self.readings = readings
         self.pixel_size_mm = pixel_size_mm(scale) if frame is None else frame.pixel_size_mm
         self.detail = detail
+        self._kept: OrderedDict[tuple, dict[str, torch.Tensor]] = OrderedDict()
         self.photo_stats = self.statistics(centre_crop(photo, *self.size))
         self.weights = {**self.weights, **{k: readings_weight for k in self.photo_stats
                                            if k not in GROUPS}}
@@ -209,12 +216,18 @@ class RenderObjective:
         return float(stat_distance(self.statistics(img), self.photo_stats, self.weights)[0])
 
     def _mean_stats(self, params: YarnParams, seed: int) -> dict[str, torch.Tensor]:
+        if (params, seed) in self._kept:
+            return self._kept[params, seed]
         stats = []
         for k in range(self.seeds_per_eval):
             stats.append(self.statistics(self.render(params, seed + 1000 * k)))
             if self.detail is not None:
                 stats[-1] |= self.detail_statistics(self.render_detail(params, seed + 1000 * k))
-        return {g: torch.stack([s[g] for s in stats]).mean(dim=0) for g in stats[0]}
+        self._kept[params, seed] = {g: torch.stack([s[g] for s in stats]).mean(dim=0)
+                                    for g in stats[0]}
+        if len(self._kept) > STATS_KEPT:
+            self._kept.popitem(last=False)
+        return self._kept[params, seed]
 
     def group_distances(self, params: YarnParams, seed: int) -> dict[str, float]:
         """Each statistics group's distance to the photo's (unweighted), of the statistics

@@ -330,3 +330,28 @@ def test_a_backlit_fit_chooses_the_ply_count_by_the_silhouette_and_the_nets_prio
     frontlit = _CountObjective("frontlit")
     assert choose_ply_count(frontlit, start, prior, (0, 1, 2)) == (start, {})
     assert not frontlit.calls
+
+
+def test_the_objective_renders_a_pair_of_params_and_seed_once_whatever_the_weights(photo):
+    """A fit scores its start under several weightings: the second scoring of the same
+    yarn and fiber seed reuses the render (the counter of renders stays), and gives the
+    loss a fresh objective gives; another seed or yarn renders anew."""
+    from ipm.photo import Photo
+    from ipm.refine.objective import RenderObjective
+    from ipm.render.renderer import Renderer
+
+    small = Photo.read(photo, 0.04).at_pitch(0.2)
+    renderer = Renderer()
+    objective = RenderObjective(renderer, small, 0.2, 4, seeds_per_eval=2)
+    golden = preset("golden")
+    whole = objective(golden, 1)
+    assert objective.evaluations == 2  # two fiber seeds per evaluation
+    silhouette = objective(golden.replace(), 1,
+                           {k: float(k == "silhouette") for k in objective.photo_stats})
+    assert objective.evaluations == 2
+    assert silhouette == pytest.approx(objective.group_distances(golden, 1)["silhouette"])
+    assert whole == pytest.approx(RenderObjective(renderer, small, 0.2, 4, seeds_per_eval=2)(
+        golden, 1))
+    objective(golden, 2)
+    objective(golden.replace(R_ply=1.1 * golden.R_ply), 1)
+    assert objective.evaluations == 6

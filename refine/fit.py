@@ -306,8 +306,8 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
              if options.match_size else neural)
     scores: dict[int, float] = {}
     if options.choose_count and count_prior:
-        start, scores = choose_ply_count(objective, start, count_prior,
-                                    (options.search.fiber_seed, *options.search.rescore_seeds))
+        seeds = (options.search.fiber_seed, *options.search.rescore_seeds)
+        start, scores = choose_ply_count(objective, start, count_prior, seeds)
     counts = list(dict.fromkeys([start.n, *likeliest_counts(count_prior or {},
                                                             options.ply_counts)]))
     result = search_ply_counts(objective, start, counts[:options.ply_counts], options.search,

@@ -37,9 +37,9 @@ _PARAMS_HELP = ("parameters to search (any but the ply count n; m is rounded), "
 _MATCH_SIZE_HELP = ("start the search from the nets' yarn scaled (R_ply, r_x, r_y by one "
                     "factor) to the photo's core width, keeping the nets' proportions: for "
                     "yarns thinner or thicker than the nets know")
-_NETS_COUNT_HELP = ("keep the nets' ply count; by default a backlit fit first chooses it by "
-                    "the core's outline and the nets' probabilities (ipm.refine.objective."
-                    "COUNT_GROUPS)")
+_NETS_COUNT_HELP = ("keep the nets' ply count; by default a backlit fit whose search starts "
+                    "with alpha_ply first chooses it by the core's outline and the nets' "
+                    "probabilities (ipm.refine.objective.COUNT_GROUPS)")
 _POLISH_HELP = ("evaluations of a local search (BOBYQA) from the best of each stage of two "
                 "or more parameters, beyond the budget: a global search's budget only "
                 "samples a coarse grid there (0: none)")
@@ -243,7 +243,6 @@ def compare(
     from ipm.nets.ensemble import Ensemble
     from ipm.refine import compare as cmp
     from ipm.refine.fit import FitOptions
-    from ipm.refine.objective import COUNT_GROUPS
 
     options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
                                               budget=budget, polish=polish),
@@ -265,7 +264,7 @@ def compare(
     settings |= {"ply_counts": ply_counts} if ply_counts > 1 else {}  # (older: one)
     settings |= {"polish": polish} if polish else {}
     settings |= {"match_size": True} if match_size else {}
-    count_groups = COUNT_GROUPS[setup] if options.choose_count else ()
+    count_groups = options.count_groups(setup)
     settings |= {"count_groups": list(count_groups)} if count_groups else {}
     later = options.search.later
     settings |= {"later_stages": [list(s) for s in later]} if later else {}

@@ -66,7 +66,11 @@ class FitOptions:
     match_size: start the search from the nets' yarn scaled to the photo's core width
     (:func:`match_size`) instead of from the nets' yarn itself.  choose_count: in a setup
     with :data:`ipm.refine.objective.COUNT_GROUPS`, start from the ply count those groups
-    and the nets' probabilities choose (:func:`choose_ply_count`) instead of the nets'."""
+    and the nets' probabilities choose (:func:`choose_ply_count`) instead of the nets',
+    when the search's first stage moves ``alpha_ply``.  A search that fits the thickness
+    in a stage before keeps the nets' count: the choice sees the nets' thickness, and on
+    the real photos, thinner than any yarn the nets know, it then chose 4 plies for most of
+    the 2-ply yarns (docs/real-photos-count)."""
 
     scale: float = 0.2
     spp: int = 4
@@ -89,6 +93,13 @@ class FitOptions:
         if not (0 <= self.learned < 1e6 and 0 <= self.detail < 1e6):
             raise UserError(f"the weights of the nets' readings must be >= 0, got "
                             f"{self.learned}, {self.detail}")
+
+    def count_groups(self, setup: str) -> tuple[str, ...]:
+        """The groups a fit of a photo of ``setup`` chooses its ply count by (``choose_count``;
+        none: the nets' count)."""
+        if not self.choose_count or "alpha_ply" not in self.search.stages[0]:
+            return ()
+        return COUNT_GROUPS[setup]
 
 
 def nets_interval(name: str, value: float, sigma: float) -> tuple[float, float]:
@@ -305,7 +316,7 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
     start = (match_colour(objective, match_size(objective, neural, small), small)
              if options.match_size else neural)
     scores: dict[int, float] = {}
-    if options.choose_count and count_prior:
+    if count_prior and options.count_groups(objective.setup):
         seeds = (options.search.fiber_seed, *options.search.rescore_seeds)
         start, scores = choose_ply_count(objective, start, count_prior, seeds)
     counts = list(dict.fromkeys([start.n, *likeliest_counts(count_prior or {},

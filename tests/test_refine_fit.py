@@ -355,3 +355,16 @@ def test_the_objective_renders_a_pair_of_params_and_seed_once_whatever_the_weigh
     objective(golden, 2)
     objective(golden.replace(R_ply=1.1 * golden.R_ply), 1)
     assert objective.evaluations == 6
+
+
+def test_a_fit_chooses_the_ply_count_only_when_its_search_starts_with_the_pitch():
+    from ipm.refine.fit import FitOptions
+    from ipm.refine.search import SearchOptions
+
+    assert FitOptions().count_groups("backlit") == ("silhouette",)
+    assert FitOptions().count_groups("frontlit") == ()
+    assert FitOptions(choose_count=False).count_groups("backlit") == ()
+    staged = SearchOptions(params=("R_ply", "r_x", "r_y"), later=(("alpha_ply",),))
+    assert FitOptions(search=staged).count_groups("backlit") == ()
+    joint = SearchOptions(params=("alpha_ply", "R_ply"))
+    assert FitOptions(search=joint).count_groups("backlit") == ("silhouette",)

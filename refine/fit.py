@@ -66,11 +66,12 @@ class FitOptions:
     match_size: start the search from the nets' yarn scaled to the photo's core width
     (:func:`match_size`) instead of from the nets' yarn itself.  choose_count: in a setup
     with :data:`ipm.refine.objective.COUNT_GROUPS`, start from the ply count those groups
-    and the nets' probabilities choose (:func:`choose_ply_count`) instead of the nets',
-    when the search's first stage moves ``alpha_ply``.  A search that fits the thickness
-    in a stage before keeps the nets' count: the choice sees the nets' thickness, and on
-    the real photos, thinner than any yarn the nets know, it then chose 4 plies for most of
-    the 2-ply yarns (docs/real-photos-count)."""
+    and the nets' probabilities choose (:func:`choose_ply_count`) instead of the nets':
+    before the search when its first stage moves ``alpha_ply``, else before the first
+    stage that does, from the stages before's best.  Why not always first: the choice
+    sees the thickness it starts from, and on the real photos, thinner than any yarn the
+    nets know, at the nets' thickness it chose 4 plies for most of the 2-ply yarns
+    (docs/real-photos-count)."""
 
     scale: float = 0.2
     spp: int = 4
@@ -97,7 +98,7 @@ class FitOptions:
     def count_groups(self, setup: str) -> tuple[str, ...]:
         """The groups a fit of a photo of ``setup`` chooses its ply count by (``choose_count``;
         none: the nets' count)."""
-        if not self.choose_count or "alpha_ply" not in self.search.stages[0]:
+        if not self.choose_count or "alpha_ply" not in self.search.searched:
             return ()
         return COUNT_GROUPS[setup]
 
@@ -316,13 +317,22 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
     start = (match_colour(objective, match_size(objective, neural, small), small)
              if options.match_size else neural)
     scores: dict[int, float] = {}
+    choose: Callable[[YarnParams], YarnParams] | None = None
     if count_prior and options.count_groups(objective.setup):
         seeds = (options.search.fiber_seed, *options.search.rescore_seeds)
-        start, scores = choose_ply_count(objective, start, count_prior, seeds)
+
+        def with_chosen_count(p: YarnParams) -> YarnParams:
+            chosen, found = choose_ply_count(objective, p, count_prior, seeds)
+            scores.update(found)
+            return chosen
+
+        choose = with_chosen_count
+        if "alpha_ply" in options.search.stages[0]:  # chosen before the search
+            start, choose = with_chosen_count(start), None
     counts = list(dict.fromkeys([start.n, *likeliest_counts(count_prior or {},
                                                             options.ply_counts)]))
     result = search_ply_counts(objective, start, counts[:options.ply_counts], options.search,
-                               on_eval, sigma)
+                               on_eval, sigma, choose)
     best, best_loss = ((result.best, result.best_loss) if result.improved
                        else (start, result.start_loss))
     loss_neural, improved = result.start_loss, result.improved

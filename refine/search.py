@@ -371,17 +371,26 @@ def _offset(on_eval: Callable[[int, float, float], None] | None, results: list[S
 
 def search_stages(objective: Objective, start: YarnParams, opts: SearchOptions = SearchOptions(),
                   on_eval: Callable[[int, float, float], None] | None = None,
-                  sigma: dict[str, float] | None = None) -> SearchResult:
+                  sigma: dict[str, float] | None = None,
+                  choose: Callable[[YarnParams], YarnParams] | None = None) -> SearchResult:
     """:func:`search` of each of ``opts.stages`` in turn, each from the stage before's best
     (a staged search: the parameters the loss sees most first), with the objective's
-    ``for_stage`` if it has one.  Improved if any stage moved away from its start and, when
-    a stage was searched with an objective of its own, the objective's loss (mean over the
-    seeds) is no higher at the end than at the start: a stage decides by the groups that
-    see its parameters, and the whole loss must not disagree."""
+    ``for_stage`` if it has one.  ``choose``: applied to the best so far before a later
+    stage that moves ``alpha_ply`` (the ply count's choice after the thickness stages,
+    :func:`ipm.refine.fit.choose_ply_count`; the first stage starts from ``start`` as
+    given).  Improved if any stage moved away from its start or ``choose`` changed the
+    count and, when a stage was searched with an objective of its own or the count changed,
+    the objective's loss (mean over the seeds) is no higher at the end than at the start: a
+    stage decides by the groups that see its parameters, and the whole loss must not
+    disagree."""
     results: list[SearchResult] = []
     own: list[bool] = []  # whether a stage was searched with ``objective`` itself
     current = start
+    changed = False
     for i, names in enumerate(opts.stages):
+        if choose is not None and i > 0 and "alpha_ply" in names:
+            chosen, choose = choose(current), None
+            changed, current = chosen.n != current.n, chosen
         stage = replace(opts, params=names, later=())
         earlier = [k for before in opts.stages[:i] for k in before]
         of_stage = (objective.for_stage(names, earlier) if hasattr(objective, "for_stage")
@@ -399,8 +408,8 @@ def search_stages(objective: Objective, start: YarnParams, opts: SearchOptions =
         results[0] = replace(results[0], start_loss=rescored(start))
     if not own[-1]:
         results[-1] = replace(results[-1], best_loss=rescored(current))
-    improved = any(r.improved for r in results)
-    if not all(own):
+    improved = any(r.improved for r in results) or changed
+    if not all(own) or changed:
         improved = improved and results[-1].best_loss <= results[0].start_loss
     if len(results) == 1:
         return replace(results[0], improved=improved)
@@ -409,15 +418,17 @@ def search_stages(objective: Objective, start: YarnParams, opts: SearchOptions =
 
 def search_ply_counts(objective: Objective, neural: YarnParams, counts: Sequence[int],
                       opts: SearchOptions, on_eval: Callable[[int, float, float], None] | None,
-                      sigma: dict[str, float] | None) -> SearchResult:
+                      sigma: dict[str, float] | None,
+                      choose: Callable[[YarnParams], YarnParams] | None = None
+                      ) -> SearchResult:
     """:func:`search_stages` from ``neural`` with each ply count of ``counts`` (the nets' own
     first); with several, the result with the lowest mean loss over the seeds wins, and it
     counts as an improvement only if that loss is below the nets' guess's.  ``on_eval`` sees the
-    evaluations of all searches in one count."""
+    evaluations of all searches in one count.  ``choose``: that of :func:`search_stages`."""
     results: list[SearchResult] = []
     for n in counts:
         results.append(search_stages(objective, neural.replace(n=n), opts,
-                                     _offset(on_eval, results), sigma))
+                                     _offset(on_eval, results), sigma, choose))
     if len(results) == 1:
         return results[0]
     best = min(results, key=lambda r: r.best_loss)

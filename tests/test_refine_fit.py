@@ -357,7 +357,7 @@ def test_the_objective_renders_a_pair_of_params_and_seed_once_whatever_the_weigh
     assert objective.evaluations == 6
 
 
-def test_a_fit_chooses_the_ply_count_only_when_its_search_starts_with_the_pitch():
+def test_a_fit_chooses_the_ply_count_when_its_search_moves_the_pitch():
     from ipm.refine.fit import FitOptions
     from ipm.refine.search import SearchOptions
 
@@ -365,6 +365,6 @@ def test_a_fit_chooses_the_ply_count_only_when_its_search_starts_with_the_pitch(
     assert FitOptions().count_groups("frontlit") == ()
     assert FitOptions(choose_count=False).count_groups("backlit") == ()
     staged = SearchOptions(params=("R_ply", "r_x", "r_y"), later=(("alpha_ply",),))
-    assert FitOptions(search=staged).count_groups("backlit") == ()
-    joint = SearchOptions(params=("alpha_ply", "R_ply"))
-    assert FitOptions(search=joint).count_groups("backlit") == ("silhouette",)
+    assert FitOptions(search=staged).count_groups("backlit") == ("silhouette",)
+    thickness = SearchOptions(params=("R_ply", "r_x", "r_y"))
+    assert FitOptions(search=thickness).count_groups("backlit") == ()

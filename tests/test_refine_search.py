@@ -193,6 +193,32 @@ def test_the_likeliest_counts_stop_at_the_mass_or_the_number_asked():
     assert likeliest_counts({}, most=3) == ()
 
 
+def test_a_staged_search_chooses_the_count_before_its_pitch_stage_and_the_whole_loss_judges():
+    """The count is chosen once, from the thickness stage's best (R_ply at the truth), and
+    kept when the loss agrees; a count the loss scores 10 higher is not an improvement."""
+    def loss(p, seed):
+        return quadratic(p, seed) + (10.0 if p.n == 6 else 0.0) \
+            + (0.0 if p.n in (TRUTH.n, 6) else 1.0)
+
+    opts = SearchOptions(params=("R_ply",), later=(("alpha_ply",),), budget=20)
+    start = TRUTH.replace(n=TRUTH.n + 1, R_ply=TRUTH.R_ply * 1.2)
+    seen = []
+
+    def right(p):
+        seen.append(p)
+        return p.replace(n=TRUTH.n)
+
+    res = search_stages(loss, start, opts, None, None, right)
+    assert len(seen) == 1 and abs(seen[0].R_ply - TRUTH.R_ply) < 0.02 * TRUTH.R_ply
+    assert seen[0].n == start.n and res.improved and res.best.n == TRUTH.n
+    wrong = search_stages(loss, TRUTH.replace(R_ply=TRUTH.R_ply * 1.2), opts, None, None,
+                          lambda p: p.replace(n=6))
+    assert wrong.best.n == 6 and not wrong.improved
+    first = SearchOptions(params=("alpha_ply",), later=(("R_ply",),), budget=20)
+    never = search_stages(loss, start, first, None, None, lambda p: p.replace(n=6))
+    assert never.best.n == start.n  # a later stage without alpha_ply: no choice
+
+
 def test_staged_search_starts_each_stage_from_the_one_before():
     """alpha_ply, then alpha from alpha_ply's best: both reach the truth, the evaluations
     count on across the stages, and a stage with an empty parameter list is refused."""

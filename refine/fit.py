@@ -50,6 +50,12 @@ from ipm.render.scene import Frame, frame_size, pixel_size_mm
 CLIPPED_WARN = 0.02
 #: The core must differ from the background by this much (sRGB) for a yarn to be seen.
 MIN_CORE_CONTRAST = 0.03
+#: A fit chooses its ply count (:func:`choose_ply_count`) only from a yarn whose render's
+#: core is within this factor of the photo's width: the choice reads the core's outline at
+#: that thickness.  The nets' yarns render 0.55-1.11 times as wide as the photo on backlit
+#: validation renders, 0.74-1.04 on Cycles ones, 2.2-3.5 on the real photos, where the
+#: choice at that width read 2 plies on 5 of 12 (docs/real-photos-count).
+COUNT_WIDTH_FACTOR = 1.5
 
 
 @dataclass(frozen=True)
@@ -217,6 +223,15 @@ def match_colour(objective: RenderObjective, params: YarnParams, photo: np.ndarr
     return params
 
 
+def width_ratio(objective: RenderObjective, params: YarnParams, photo: np.ndarray) -> float:
+    """How many times as wide as ``photo``'s core the render of ``params`` is
+    (:func:`ipm.refine.stats.core_width`, fiber seed 0)."""
+    def width(img: np.ndarray) -> float:
+        return float(core_width(to_tensor(img).mean(dim=1, keepdim=True))[0])
+
+    return width(objective.render(params, 0)) / max(width(photo), 1e-9)
+
+
 def match_size(objective: RenderObjective, params: YarnParams, photo: np.ndarray,
                rounds: int = 2) -> YarnParams:
     """``params`` with R_ply, r_x and r_y scaled by one factor until the render's core is as
@@ -322,6 +337,13 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         seeds = (options.search.fiber_seed, *options.search.rescore_seeds)
 
         def with_chosen_count(p: YarnParams) -> YarnParams:
+            ratio = width_ratio(objective, p, small)
+            if not 1 / COUNT_WIDTH_FACTOR <= ratio <= COUNT_WIDTH_FACTOR:
+                warnings.append(f"the yarn renders {ratio:.2g} times as wide as the photo's "
+                                "core, so its ply count is kept: the count's choice reads "
+                                "the core's outline (a search that fits the thickness first, "
+                                "--params 'R_ply,r_x,r_y;alpha_ply', chooses it after)")
+                return p
             chosen, found = choose_ply_count(objective, p, count_prior, seeds)
             scores.update(found)
             return chosen

@@ -368,3 +368,16 @@ def test_a_fit_chooses_the_ply_count_when_its_search_moves_the_pitch():
     assert FitOptions(search=staged).count_groups("backlit") == ("silhouette",)
     thickness = SearchOptions(params=("R_ply", "r_x", "r_y"))
     assert FitOptions(search=thickness).count_groups("backlit") == ()
+
+
+def test_the_width_ratio_of_a_render_to_the_photo_core():
+    """A drawn band twice and half as wide as the photo's 60 px core."""
+    from ipm.refine.fit import width_ratio
+
+    truth = preset("golden")
+    objective = _BandObjective(2 * (truth.R_ply + truth.r_y) / 60)
+    photo = band_image(60)
+    assert width_ratio(objective, truth, photo) == pytest.approx(1.0, abs=0.05)
+    for factor in (2.0, 0.5):
+        thick = truth.replace(R_ply=truth.R_ply * factor, r_y=truth.r_y * factor)
+        assert width_ratio(objective, thick, photo) == pytest.approx(factor, rel=0.05)

@@ -52,9 +52,8 @@ CLIPPED_WARN = 0.02
 MIN_CORE_CONTRAST = 0.03
 #: A fit chooses its ply count (:func:`choose_ply_count`) only from a yarn whose render's
 #: core is within this factor of the photo's width: the choice reads the core's outline at
-#: that thickness.  The nets' yarns render 0.55-1.11 times as wide as the photo on backlit
-#: validation renders, 0.74-1.04 on Cycles ones, 2.2-3.5 on the real photos, where the
-#: choice at that width read 2 plies on 5 of 12 (docs/real-photos-count).
+#: that thickness, and on the real photos, whose yarns the nets' render far wider, it
+#: misread the count (docs/real-photos-count; the widths: benchmarks/results/count_width.md).
 COUNT_WIDTH_FACTOR = 1.5
 
 

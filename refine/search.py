@@ -50,8 +50,8 @@ PROFILE_RISE = 0.5 * float(chi2.ppf(LEVEL, 1))
 #: counts and a thickness stage chose the count better on the real photos and on Cycles
 #: renders (docs/real-photos-silhouette, docs/compare-cycles-backlit-silhouette) at twice
 #: the time; not yet measured with the default search, so the default stays one.  (A
-#: backlit fit chooses the count it starts from before any search, by the silhouette at
-#: the nets' stripe period: :func:`ipm.refine.fit.choose_ply_count`.)
+#: backlit fit chooses the count its pitch stage starts from, by the silhouette at the
+#: nets' stripe period: :func:`ipm.refine.fit.choose_ply_count`.)
 DEFAULT_PLY_COUNTS = 1
 #: The weight of the nets' readings in a fit's loss (:class:`ipm.refine.fit.FitOptions`).
 DEFAULT_LEARNED = 0.0

@@ -222,13 +222,15 @@ def match_colour(objective: RenderObjective, params: YarnParams, photo: np.ndarr
     return params
 
 
+def image_core_width(img: np.ndarray) -> float:
+    """The core's width (px) of an sRGB image (:func:`ipm.refine.stats.core_width`)."""
+    return float(core_width(to_tensor(img).mean(dim=1, keepdim=True))[0])
+
+
 def width_ratio(objective: RenderObjective, params: YarnParams, photo: np.ndarray) -> float:
     """How many times as wide as ``photo``'s core the render of ``params`` is
-    (:func:`ipm.refine.stats.core_width`, fiber seed 0)."""
-    def width(img: np.ndarray) -> float:
-        return float(core_width(to_tensor(img).mean(dim=1, keepdim=True))[0])
-
-    return width(objective.render(params, 0)) / max(width(photo), 1e-9)
+    (:func:`image_core_width`, fiber seed 0)."""
+    return image_core_width(objective.render(params, 0)) / max(image_core_width(photo), 1e-9)
 
 
 def match_size(objective: RenderObjective, params: YarnParams, photo: np.ndarray,
@@ -245,12 +247,9 @@ def match_size(objective: RenderObjective, params: YarnParams, photo: np.ndarray
     docs/real-photos-contour), and flattened plies bump the core's outline twice per ply
     crossing.  Scaling keeps the nets' proportions and matches the width.  Whether a fit
     from the sized start does better is not yet measured, so it is an option."""
-    def width(img: np.ndarray) -> float:
-        return float(core_width(to_tensor(img).mean(dim=1, keepdim=True))[0])
-
-    target = width(photo)
+    target = image_core_width(photo)
     for _ in range(rounds):
-        got = width(objective.render(params, 0))
+        got = image_core_width(objective.render(params, 0))
         if not (target > 0 and got > 0):
             break
         factor = float(np.clip(target / got, 0.25, 4.0))

@@ -23,8 +23,7 @@ from ipm.benchmarks.machine import markdown_header, publish
 def ratios(photos: list, setup: str) -> list[float]:
     """:func:`ipm.refine.fit.width_ratio` of the shipped nets' guess for each photo."""
     from ipm.nets.ensemble import Ensemble
-    from ipm.refine.fit import FitOptions, photo_tilt, search_view, width_ratio
-    from ipm.refine.objective import RenderObjective
+    from ipm.refine.fit import FitOptions, search_objective, width_ratio
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
@@ -32,10 +31,7 @@ def ratios(photos: list, setup: str) -> list[float]:
     renderer = Renderer(options=setup_options(setup))
     out = []
     for photo in photos:
-        scale, frame = search_view(photo, FitOptions().scale)
-        small = photo.at_pitch(scale)
-        objective = RenderObjective(renderer, small, scale, FitOptions().spp,
-                                    tilt_deg=photo_tilt(small), frame=frame)
+        objective, small = search_objective(photo, renderer, FitOptions())
         out.append(width_ratio(objective, ens.predict(photo), small))
     return out
 

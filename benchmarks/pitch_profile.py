@@ -45,25 +45,11 @@ GROUPS = ("period", "stripes", "contour")
 STAGE = "alpha_ply stage"
 
 
-def search_objective(photo, renderer, options):
-    """``(objective, small)``: the objective ``ipm fit`` searches ``photo`` with (its view
-    at the search's pitch, its tilt, the fit's seeds per evaluation), and the photo at that
-    pitch."""
-    from ipm.refine.fit import photo_tilt, search_view
-    from ipm.refine.objective import RenderObjective
-
-    scale, frame = search_view(photo, options.scale)
-    small = photo.at_pitch(scale)
-    return RenderObjective(renderer, small, scale, options.spp,
-                           seeds_per_eval=options.seeds_per_eval, tilt_deg=photo_tilt(small),
-                           frame=frame), small
-
-
 def profile(photo_file: Path, row: dict, pixel_size_mm: float, renderer) -> dict:
     """Per group (and the pitch stage's weighted sum), the period (mm) at its lowest."""
     from ipm.dataset import Record
     from ipm.params import YarnParams
-    from ipm.refine.fit import FitOptions
+    from ipm.refine.fit import FitOptions, search_objective
     from ipm.refine.stats import weighted_sum
 
     options = FitOptions()
@@ -107,7 +93,7 @@ def labelled_sweep(record, ensemble, renderer, options) -> dict:
     """The nets' guess of ``record``'s photo and each group's distance to the photo over a
     grid of ``alpha_ply`` in the default search's box (at the search's fiber seed), and at
     the guess over every seed of the search (its seed noise)."""
-    from ipm.refine.fit import match_colour
+    from ipm.refine.fit import match_colour, search_objective
     from ipm.refine.search import search_box
 
     photo = record.photo()

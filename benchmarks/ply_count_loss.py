@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 
 import numpy as np
 
@@ -44,8 +45,7 @@ def run(data: str, count: int, counts: list[int], spp: int, start: str = "truth"
     and records the nets' count and probabilities."""
     from ipm.benchmarks.report import load_records
     from ipm.nets.ensemble import Ensemble
-    from ipm.refine.fit import FitOptions, match_colour, photo_tilt, search_view
-    from ipm.refine.objective import RenderObjective
+    from ipm.refine.fit import FitOptions, match_colour, search_objective
     from ipm.refine.search import same_period
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
@@ -56,13 +56,11 @@ def run(data: str, count: int, counts: list[int], spp: int, start: str = "truth"
     ens = Ensemble.load(None, setup=setup) if start == "nets" else None
     fit = FitOptions()
     seeds = (fit.search.fiber_seed, *fit.search.rescore_seeds) if ens else SEEDS
+    rendered = replace(fit, spp=spp, seeds_per_eval=fit.seeds_per_eval if ens else 1)
     out = []
     for i, rec in enumerate(records):
         photo = rec.photo()
-        scale, frame = search_view(photo, fit.scale)
-        small = photo.at_pitch(scale)
-        objective = RenderObjective(renderer, small, scale, spp, tilt_deg=photo_tilt(small),
-                                    frame=frame, seeds_per_eval=fit.seeds_per_eval if ens else 1)
+        objective, small = search_objective(photo, renderer, rendered)
         row: dict = {"n": rec.params.n, "setup": setup, "losses": {}, "per_seed": {}}
         base = rec.params
         if ens is not None:

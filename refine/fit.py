@@ -398,6 +398,19 @@ def photo_tilt(image_srgb: np.ndarray) -> float:
     return float(yarn_tilt(to_tensor(image_srgb).mean(dim=1, keepdim=True))[0])
 
 
+def search_objective(photo: Photo, renderer, options: FitOptions
+                     ) -> tuple[RenderObjective, np.ndarray]:
+    """``(objective, small)``: the objective a fit searches ``photo`` with (its view at the
+    search's pitch, :func:`search_view`; its tilt; ``options``' samples and seeds per
+    evaluation), and the photo at that pitch; for the benchmarks that score what a fit
+    sees without searching."""
+    scale, frame = search_view(photo, options.scale)
+    small = photo.at_pitch(scale)
+    return RenderObjective(renderer, small, scale, options.spp,
+                           seeds_per_eval=options.seeds_per_eval, tilt_deg=photo_tilt(small),
+                           frame=frame), small
+
+
 def _mean_loss(objective: RenderObjective, p: YarnParams, opts: SearchOptions) -> float:
     return float(np.mean([objective(p, s) for s in (opts.fiber_seed, *opts.rescore_seeds)]))
 

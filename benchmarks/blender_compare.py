@@ -79,8 +79,8 @@ def scene_npz(path: Path, params, seed: int) -> int:
     np.savez(path, points=points[:, :3], offsets=fibers.offsets, radius=fibers.round_radii(),
              color=np.array(params.color), frame=np.array([width, height]),
              frame_mm=width * S.pixel_size_mm(SCALE), camera_distance=S.CAMERA_DISTANCE_MM,
-             soft_boxes=np.array([[*centre, side, share * opts.key_light]
-                                  for _, centre, side, share in S.SOFT_BOXES]),
+             soft_boxes=np.array([[*centre, side, radiance]
+                                  for _, centre, side, radiance in S.soft_boxes(opts)]),
              room_light=opts.room_light, backdrop=opts.backdrop, roughness=opts.roughness,
              sheen=opts.sheen, backdrop_depth=S.BACKDROP_DEPTH_MM)
     return len(fibers.offsets) - 1

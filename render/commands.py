@@ -203,9 +203,10 @@ def generate(
                                               "and rotation and sensor noise per sample "
                                               "(seeded, recorded in the manifest)")] = True,
     vary_look: Annotated[bool, typer.Option("--vary-look", help="also vary the lamps' and "
-                                            "the backdrop's strength, defocus, vignetting, "
-                                            "tone curve and JPEG compression per sample, so "
-                                            "that nets do not learn one look")] = False,
+                                            "the backdrop's strength, the frontlit lamps' "
+                                            "places, defocus, vignetting, tone curve and "
+                                            "JPEG compression per sample, so that nets do "
+                                            "not learn one look")] = False,
     vary_material: Annotated[bool, typer.Option("--vary-material", help="also vary how much "
                                                 "light a fiber stops (backlit) and the room's "
                                                 "fill light per sample, so that nets do not "

@@ -3,9 +3,9 @@
 A :class:`PhotometricRanges` says how much variation a dataset gets; ``draw(rng)`` picks one
 :class:`Photometric` per sample, which the manifest records (``to_dict``) so that a sample can
 be re-rendered bit for bit.  The yarn's shift and rotation act on the geometry (the renderer
-places the fibers with them); the lights' and the backdrop's strength on the scene (through
-``mi.traverse``, :func:`ipm.render.scene.scaled_options`); exposure, white balance, defocus,
-vignetting and sensor noise on the linear image (:func:`apply_to_image`); a camera's tone
+places the fibers with them); the lights' strength and places and the backdrop on the scene
+(through ``mi.traverse``, :func:`ipm.render.scene.scaled_options`); exposure, white balance,
+defocus, vignetting and sensor noise on the linear image (:func:`apply_to_image`); a camera's tone
 curve and JPEG compression on the encoded 8-bit image (:func:`encode`).  The later
 variations (lights, backdrop, defocus, vignetting, tone, JPEG) are off unless a dataset asks
 for them (``ipm generate --vary-look``), and the fibers' material (how much light a fiber
@@ -36,6 +36,8 @@ class Photometric:
     backdrop_gain: the lamps' and the card's strength (:func:`ipm.render.scene.scaled_options`).
     fiber_opacity: the share of the light a fiber stops in the backlit setup (0: the scene's
     own, :attr:`ipm.render.scene.SceneOptions.opacity`).  room_gain: the room's fill light.
+    lamp_turn_deg, lamp_tilt_deg, fill_share: where the frontlit soft boxes stand and how
+    strong the second is (:func:`ipm.render.scene.soft_boxes`; fill_share 0: the scene's own).
     """
 
     exposure_stops: float = 0.0
@@ -52,6 +54,9 @@ class Photometric:
     jpeg_quality: int = 0
     fiber_opacity: float = 0.0
     room_gain: float = 1.0
+    lamp_turn_deg: float = 0.0
+    lamp_tilt_deg: float = 0.0
+    fill_share: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
@@ -74,8 +79,9 @@ class PhotometricRanges:
     exposure_stops: +-stops.  white_balance: +-relative gain of red and blue against green.
     shift_mm: +-mm in x and y.  rotation_deg: +-degrees.  noise_a, noise_b: upper bounds of
     the Poisson (gain) and Gaussian (read) noise terms, drawn in [0, bound].  look: whether
-    to vary the rest as :data:`LOOK` says (lights, backdrop, defocus, vignetting, tone, JPEG).
-    material: whether to vary the fibers' material as :data:`MATERIAL` says.
+    to vary the rest as :data:`LOOK` and :data:`LAMPS` say (lights, backdrop, defocus,
+    vignetting, tone, JPEG; the frontlit lamps' places).  material: whether to vary the
+    fibers' material as :data:`MATERIAL` says.
     """
 
     exposure_stops: float = 0.3
@@ -110,20 +116,42 @@ class PhotometricRanges:
             noise=(float(noise[0]), float(noise[1])),
             noise_seed=int(rng.integers(0, 2**31 - 1)))
         if self.look:  # drawn after the rest, which stays as it was without it
-            look = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in LOOK.items()}
+            look = {k: _uniform(rng, lo, hi, log=k in LOG_LOOK) for k, (lo, hi) in LOOK.items()}
             look["jpeg_quality"] = int(round(look["jpeg_quality"])) if rng.random() < 0.5 else 0
             drawn = replace(drawn, **look)
-        if self.material:  # drawn last, likewise
-            drawn = replace(drawn, **{k: float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+        if self.material:  # drawn after the look, likewise
+            drawn = replace(drawn, **{k: _uniform(rng, lo, hi, log=True)
                                       for k, (lo, hi) in MATERIAL.items()})
+        if self.look:  # the lamps' places last, so the material's draws stay as they were
+            drawn = replace(drawn, **{k: _uniform(rng, lo, hi) for k, (lo, hi) in LAMPS.items()})
         return drawn
 
 
+def _uniform(rng: np.random.Generator, lo: float, hi: float, log: bool = False) -> float:
+    """One draw in [lo, hi], uniform or (``log``) log-uniform; either takes one number of
+    ``rng``'s stream."""
+    if log:
+        return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+    return float(rng.uniform(lo, hi))
+
+
 NO_VARIATION = PhotometricRanges(0.0, 0.0, (0.0, 0.0), 0.0, 0.0, 0.0)
-#: The ranges of the look's variations (uniform; JPEG on half of the images).
+#: The ranges of the look's variations (uniform but :data:`LOG_LOOK`'s; JPEG on half of the
+#: images).  The frontlit card from near-black velvet to a mid-grey card (albedo 0.009-0.3
+#: around the scene's 0.03), since users photograph yarn over either; it was 0.3-3 times the
+#: scene's before the frontlit nets were trained on a varied look.
 LOOK: dict[str, tuple[float, float]] = {
-    "light_gain": (0.6, 1.6), "backdrop_gain": (0.3, 3.0), "blur_mm": (0.0, 0.04),
+    "light_gain": (0.6, 1.6), "backdrop_gain": (0.3, 10.0), "blur_mm": (0.0, 0.04),
     "vignetting": (0.0, 0.3), "gamma": (0.8, 1.25), "jpeg_quality": (60, 95)}
+LOG_LOOK = frozenset({"backdrop_gain"})
+#: Where the frontlit soft boxes stand (uniform): both turned about the view direction and
+#: raised or lowered from the scene's 44 degrees above the image plane, and the second
+#: lamp's strength as a share of the first's.  Why: a copy stand's lamps stand anywhere
+#: around the yarn, and where the light comes from decides which side of each ply is lit
+#: and so how its boundaries look (benchmarks/README.md, "Photos ipm did not make").
+LAMPS: dict[str, tuple[float, float]] = {"lamp_turn_deg": (-90.0, 90.0),
+                                         "lamp_tilt_deg": (-25.0, 25.0),
+                                         "fill_share": (0.1, 1.0)}
 #: The ranges of the material's variations (log-uniform).  Why: a renderer or a real fiber
 #: that lets light through otherwise than the scene's fibers (opacity 0.5) shows another
 #: grey core and other ply boundaries, and nets trained on the one opacity read Blender

@@ -130,8 +130,7 @@ class Renderer:
             raise ValueError(f"spp must be >= 1, got {spp}")
         frame_size(scale)  # validates the scale
         to_world = yarn_to_world() if to_world is None else to_world
-        options = scaled_options(self.options, look.light_gain, look.backdrop_gain,
-                                 look.fiber_opacity, look.room_gain)
+        options = scaled_options(self.options, look)
         if self.variant.startswith("scalar"):
             # no kernels to keep, and scalar buffers cannot change size: load the yarn anew
             scene = self._load(scale, fibers.mitsuba_curve_text(), color, to_world, frame,
@@ -145,7 +144,7 @@ class Renderer:
             params[albedo_parameter(self.options)] = self.mi.Color3f(
                 *fiber_albedo(color, self.options))
             for key, value in look_parameters(options).items():  # every time: scenes are kept
-                params[key] = type(params[key])(value)  # a grey colour or a float
+                params[key] = type(params[key])(value)  # a grey colour, a float, a transform
             params.update()
         image = self.mi.render(scene, spp=spp, seed=render_seed)
         return np.array(image, dtype=np.float32)[..., :3]

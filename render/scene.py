@@ -57,7 +57,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from types import ModuleType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -65,14 +65,19 @@ from ipm.errors import UserError
 from ipm.frame import FRAME_HEIGHT_PX, FRAME_WIDTH_PX, PIXEL_SIZE_MM
 from ipm.render.integrator import PLUGIN, register
 
+if TYPE_CHECKING:
+    from ipm.render.photometric import Photometric
+
 #: Generator frame (x, y, z) -> world frame: the yarn axis z becomes the image horizontal.
 GENERATOR_TO_WORLD = np.array([[0, 0, 1], [1, 0, 0], [0, 1, 0]], dtype=np.float64)
 BACKDROP_DEPTH_MM = 50.0
 CAMERA_DISTANCE_MM = 300.0
 SAMPLERS = ("multijitter", "independent", "stratified", "ldsampler", "orthogonal")
-#: The soft boxes: name, centre (mm), side (mm), radiance as a fraction of ``key_light``.
-SOFT_BOXES = (("key_left", (-200.0, 50.0, 200.0), 150.0, 1.0),
-              ("key_right", (200.0, -30.0, 200.0), 150.0, 0.6))
+#: The soft boxes where the scene stands them: name, centre (mm), side (mm).  The first
+#: shines with ``key_light``, the second with ``fill_share`` of it (:class:`SceneOptions`);
+#: :func:`soft_boxes` turns and tilts them as a capture's look says.
+SOFT_BOXES = (("key_left", (-200.0, 50.0, 200.0), 150.0),
+              ("key_right", (200.0, -30.0, 200.0), 150.0))
 #: How often ``path``'s next-event estimation picks each light, relative to each other
 #: (Mitsuba picks them with equal probability unless told): the soft boxes by their radiance
 #: share; the room light rarely, because Mitsuba samples a constant emitter's directions over
@@ -96,7 +101,9 @@ class SceneOptions:
 
     setup: one of :data:`CAPTURE_SETUPS` (module doc).  roughness, sheen: of the fibers'
     principled BSDF (frontlit).  backdrop: albedo of the grey card (frontlit).  key_light:
-    radiance of the left soft box (the right one has 0.6 of it; frontlit).  panel: radiance
+    radiance of the left soft box, fill_share the right one's as a share of it, lamp_turn and
+    lamp_tilt (degrees) how far both are turned about the view direction and raised from
+    where :data:`SOFT_BOXES` stands them (frontlit; :func:`soft_boxes`).  panel: radiance
     of the light panel behind the yarn (backlit).  opacity: share of the light a fiber stops
     (backlit).  room_light: uniform fill radiance.  max_depth: path length (frontlit: 3 =
     one bounce between fibers; backlit: enough to pass through a ply).  sampler: Mitsuba's
@@ -110,6 +117,9 @@ class SceneOptions:
     sheen: float = 0.5
     backdrop: float = 0.03
     key_light: float = 5.0
+    fill_share: float = 0.6
+    lamp_turn: float = 0.0
+    lamp_tilt: float = 0.0
     panel: float = 0.6
     opacity: float = 0.5
     room_light: float = 0.15
@@ -139,6 +149,8 @@ class SceneOptions:
             raise UserError(f"roughness must be in [0.01, 1], got {self.roughness}")
         if not 0 <= self.sheen <= 1:
             raise UserError(f"sheen must be in [0, 1], got {self.sheen}")
+        if not 0 < self.fill_share <= 1:
+            raise UserError(f"fill_share must be in (0, 1], got {self.fill_share}")
         if not 0 <= self.backdrop <= 1:
             raise UserError(f"backdrop albedo must be in [0, 1], got {self.backdrop}")
         if self.max_depth < 2:
@@ -153,16 +165,39 @@ SETUPS: dict[str, SceneOptions] = {
 }
 
 
-def scaled_options(opts: SceneOptions, light_gain: float = 1.0, backdrop_gain: float = 1.0,
-                   fiber_opacity: float = 0.0, room_gain: float = 1.0) -> SceneOptions:
-    """``opts`` with its lamps (soft boxes or panel) ``light_gain`` and its card's albedo
-    ``backdrop_gain`` times as strong, its room light ``room_gain`` times, and its fibers'
-    opacity ``fiber_opacity`` (0: as it is): a capture's lights, backdrop and material
-    (:class:`ipm.render.photometric.Photometric`)."""
-    return replace(opts, key_light=opts.key_light * light_gain, panel=opts.panel * light_gain,
-                   backdrop=min(1.0, opts.backdrop * backdrop_gain),
-                   room_light=opts.room_light * room_gain,
-                   opacity=fiber_opacity if fiber_opacity > 0 else opts.opacity)
+def scaled_options(opts: SceneOptions, look: Photometric) -> SceneOptions:
+    """``opts`` as a capture ``look`` sees it: its lamps (soft boxes or panel) ``light_gain``
+    and its card's albedo ``backdrop_gain`` times as strong, its room light ``room_gain``
+    times, its fibers' opacity ``fiber_opacity`` and its second lamp's ``fill_share`` (0: as
+    they are), its soft boxes turned and tilted by ``lamp_turn_deg`` and ``lamp_tilt_deg``."""
+    return replace(opts, key_light=opts.key_light * look.light_gain,
+                   panel=opts.panel * look.light_gain,
+                   backdrop=min(1.0, opts.backdrop * look.backdrop_gain),
+                   room_light=opts.room_light * look.room_gain,
+                   opacity=look.fiber_opacity if look.fiber_opacity > 0 else opts.opacity,
+                   fill_share=look.fill_share if look.fill_share > 0 else opts.fill_share,
+                   lamp_turn=opts.lamp_turn + look.lamp_turn_deg,
+                   lamp_tilt=opts.lamp_tilt + look.lamp_tilt_deg)
+
+
+def soft_boxes(opts: SceneOptions) -> list[tuple[str, tuple[float, float, float], float, float]]:
+    """The frontlit soft boxes as ``opts`` stands them: (name, centre (mm), side (mm),
+    radiance).  Each centre keeps its distance from the yarn; its azimuth about the view
+    direction turns by ``lamp_turn`` and its elevation above the image plane by
+    ``lamp_tilt`` (kept within 5-85 degrees); unturned and untilted, the centres are
+    :data:`SOFT_BOXES`' exactly."""
+    out = []
+    for (name, centre, side), share in zip(SOFT_BOXES, (1.0, opts.fill_share), strict=True):
+        if opts.lamp_turn or opts.lamp_tilt:
+            x, y, z = centre
+            dist, across = math.sqrt(x * x + y * y + z * z), math.hypot(x, y)
+            elevation = min(max(math.atan2(z, across) + math.radians(opts.lamp_tilt),
+                                math.radians(5)), math.radians(85))
+            azimuth = math.atan2(y, x) + math.radians(opts.lamp_turn)
+            centre = (dist * math.cos(elevation) * math.cos(azimuth),
+                      dist * math.cos(elevation) * math.sin(azimuth), dist * math.sin(elevation))
+        out.append((name, centre, side, share * opts.key_light))
+    return out
 
 
 def look_parameters(opts: SceneOptions) -> dict[str, float]:
@@ -173,9 +208,11 @@ def look_parameters(opts: SceneOptions) -> dict[str, float]:
     if opts.setup == "backlit":
         return {"panel.emitter.radiance.value": opts.panel,
                 "yarn.bsdf.opacity.value": opts.opacity, **room}
-    return {"backdrop.bsdf.reflectance.value": opts.backdrop,
-            **{f"{name}.emitter.radiance.value": share * opts.key_light
-               for name, _, _, share in SOFT_BOXES}, **room}
+    lamps = {}
+    for name, centre, side, radiance in soft_boxes(opts):
+        lamps[f"{name}.emitter.radiance.value"] = radiance
+        lamps[f"{name}.to_world"] = _soft_box_to_world(centre, side)
+    return {"backdrop.bsdf.reflectance.value": opts.backdrop, **lamps, **room}
 
 
 def setup_options(name: str) -> SceneOptions:
@@ -256,12 +293,17 @@ def _emitter(kind: str, name: str, radiance: float, opts: SceneOptions) -> dict[
             "sampling_weight": weight}
 
 
-def _soft_box(name: str, position: tuple[float, float, float], size_mm: float,
-              radiance: float, opts: SceneOptions) -> dict[str, Any]:
+def _soft_box_to_world(position: tuple[float, float, float], size_mm: float) -> Any:
+    """The transform of a square lamp of side ``size_mm`` at ``position`` facing the yarn."""
     import mitsuba as mi
 
-    t = mi.ScalarTransform4f().look_at(origin=position, target=[0, 0, 0], up=[0, 1, 0])
-    return {"type": "rectangle", "to_world": t @ mi.ScalarTransform4f().scale(size_mm / 2),
+    t = mi.ScalarTransform4f().look_at(origin=list(position), target=[0, 0, 0], up=[0, 1, 0])
+    return t @ mi.ScalarTransform4f().scale(size_mm / 2)
+
+
+def _soft_box(name: str, position: tuple[float, float, float], size_mm: float,
+              radiance: float, opts: SceneOptions) -> dict[str, Any]:
+    return {"type": "rectangle", "to_world": _soft_box_to_world(position, size_mm),
             "emitter": _emitter("area", name, radiance, opts)}
 
 
@@ -290,8 +332,8 @@ def _lights(opts: SceneOptions) -> dict[str, Any]:
     return {"backdrop": {"type": "rectangle", "to_world": behind,
                          "bsdf": {"type": "diffuse",
                                   "reflectance": {"type": "rgb", "value": [opts.backdrop] * 3}}},
-            **{name: _soft_box(name, centre, side, share * opts.key_light, opts)
-               for name, centre, side, share in SOFT_BOXES},
+            **{name: _soft_box(name, centre, side, radiance, opts)
+               for name, centre, side, radiance in soft_boxes(opts)},
             **room}
 
 

@@ -335,13 +335,14 @@ def test_look_variations_are_off_unless_asked_and_leave_the_other_draws_alone():
     """--vary-look draws its variations after the others, so a dataset made without them
     keeps every earlier value, and its settings record nothing new."""
     from ipm.render.dataset import GenerateOptions
-    from ipm.render.photometric import LOOK
+    from ipm.render.photometric import LAMPS, LOOK
 
     plain = PhotometricRanges().draw(np.random.default_rng(3))
     varied = PhotometricRanges(look=True).draw(np.random.default_rng(3))
     assert (plain.light_gain, plain.blur_mm, plain.gamma, plain.jpeg_quality) == (1, 0, 1, 0)
-    assert replace(varied, **{k: getattr(plain, k) for k in LOOK}) == plain
-    for k, (lo, hi) in LOOK.items():
+    assert (plain.lamp_turn_deg, plain.lamp_tilt_deg, plain.fill_share) == (0, 0, 0)
+    assert replace(varied, **{k: getattr(plain, k) for k in {**LOOK, **LAMPS}}) == plain
+    for k, (lo, hi) in {**LOOK, **LAMPS}.items():
         if k != "jpeg_quality":
             assert lo <= getattr(varied, k) <= hi, k
     for k in ("exposure_stops", "white_balance", "shift_mm", "noise", "noise_seed"):
@@ -352,16 +353,18 @@ def test_look_variations_are_off_unless_asked_and_leave_the_other_draws_alone():
         "photometric"]["look"] is True
 
 
-def test_material_variations_are_drawn_last_and_off_unless_asked():
-    """--vary-material draws after --vary-look, so the look of a dataset made without it
-    stays; its values lie in their ranges and its setting is recorded only when on."""
+def test_material_variations_are_drawn_after_the_look_and_off_unless_asked():
+    """--vary-material draws after --vary-look's lights, card and image, so those of a
+    dataset made without it stay (the frontlit lamps' places come last of all, so that
+    backlit datasets made before them keep their material); its values lie in their ranges
+    and its setting is recorded only when on."""
     from ipm.render.dataset import GenerateOptions
-    from ipm.render.photometric import MATERIAL
+    from ipm.render.photometric import LAMPS, MATERIAL
 
     look = PhotometricRanges(look=True).draw(np.random.default_rng(4))
     both = PhotometricRanges(look=True, material=True).draw(np.random.default_rng(4))
     assert (look.fiber_opacity, look.room_gain) == (0.0, 1.0)
-    assert replace(both, **{k: getattr(look, k) for k in MATERIAL}) == look
+    assert replace(both, **{k: getattr(look, k) for k in {**MATERIAL, **LAMPS}}) == look
     for k, (lo, hi) in MATERIAL.items():
         assert lo <= getattr(both, k) <= hi, k
     assert "material" not in GenerateOptions(count=1).settings()["photometric"]
@@ -390,6 +393,56 @@ def test_fiber_opacity_sets_what_one_fiber_lets_through_and_the_scene_resets():
         assert 1 - o <= through(fiber_opacity=o) <= 1 - o + 0.12, o
     assert through(room_gain=4.0) > nominal + 0.02
     assert through() == pytest.approx(nominal, abs=1e-6)
+
+
+def test_soft_boxes_turn_and_tilt_about_the_yarn_keeping_their_distance():
+    """Measured on the returned centres by their own angles: the azimuth about the view
+    direction moves by the turn, the angle above the image plane by the tilt (held within
+    5-85 degrees), the distance stays; untouched, the centres are the scene's exactly."""
+    from ipm.render.scene import SOFT_BOXES, soft_boxes
+
+    nominal = SceneOptions()
+    assert [c for _, c, _, _ in soft_boxes(nominal)] == [c for _, c, _ in SOFT_BOXES]
+    assert [r for *_, r in soft_boxes(nominal)] == [nominal.key_light, 0.6 * nominal.key_light]
+
+    def angles(c):
+        c = np.asarray(c)
+        return (np.degrees(np.arctan2(c[1], c[0])), np.degrees(np.arcsin(c[2] / np.linalg.norm(c))),
+                np.linalg.norm(c))
+
+    for turn, tilt in ((90.0, 0.0), (-30.0, 20.0), (0.0, -25.0), (10.0, 60.0)):
+        moved = soft_boxes(replace(nominal, lamp_turn=turn, lamp_tilt=tilt, fill_share=0.3))
+        assert moved[1][3] == pytest.approx(0.3 * nominal.key_light)
+        for (_, c0, _), (_, c1, _, _) in zip(SOFT_BOXES, moved, strict=True):
+            (az0, el0, d0), (az1, el1, d1) = angles(c0), angles(c1)
+            assert (az1 - az0 - turn + 180) % 360 - 180 == pytest.approx(0, abs=1e-9)
+            assert el1 == pytest.approx(min(max(el0 + tilt, 5), 85), abs=1e-9)
+            assert d1 == pytest.approx(d0)
+    with pytest.raises(UserError, match="fill_share"):
+        SceneOptions(fill_share=0.0)
+
+
+def test_turned_lamps_light_the_side_of_a_fiber_they_face(renderer):
+    """A thick straight fiber along the image's horizontal, its key lamp turned to stand
+    below the yarn (+90 degrees from the scene's left: the lamps turn counter-clockwise) and
+    then above it (-90), lowered towards the image plane, the second lamp dimmed: the
+    fiber's lower half is the brighter one, then its upper half; the next render without a
+    look is the scene's again."""
+    fibers = _straight_fibers([0.0], 0.3)
+
+    def halves(**look) -> tuple[float, float]:
+        image = renderer.render_fibers(fibers, (0.6, 0.6, 0.6), 0.5, spp=16,
+                                       look=Photometric(**look)).mean(-1)
+        h = image.shape[0]
+        band = image[:, 100:-100].mean(1)
+        return float(band[h // 2 - 4:h // 2 - 1].mean()), float(band[h // 2 + 2:h // 2 + 5].mean())
+
+    base = renderer.render_fibers(fibers, (0.6, 0.6, 0.6), 0.5, spp=16)
+    up, down = halves(lamp_turn_deg=90.0, lamp_tilt_deg=-25.0, fill_share=0.1)
+    assert down > 1.3 * up, (up, down)
+    up, down = halves(lamp_turn_deg=-90.0, lamp_tilt_deg=-25.0, fill_share=0.1)
+    assert up > 1.3 * down, (up, down)
+    assert np.array_equal(renderer.render_fibers(fibers, (0.6, 0.6, 0.6), 0.5, spp=16), base)
 
 
 def test_look_variations_act_on_scene_and_image(renderer):

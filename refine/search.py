@@ -422,13 +422,17 @@ def search_ply_counts(objective: Objective, neural: YarnParams, counts: Sequence
                       choose: Callable[[YarnParams], YarnParams] | None = None
                       ) -> SearchResult:
     """:func:`search_stages` from ``neural`` with each ply count of ``counts`` (the nets' own
-    first); with several, the result with the lowest mean loss over the seeds wins, and it
-    counts as an improvement only if that loss is below the nets' guess's.  ``on_eval`` sees the
-    evaluations of all searches in one count.  ``choose``: that of :func:`search_stages`."""
+    first), another count from the nets' stripe period (:func:`same_period`, the pitch as it
+    is where that leaves its interval), so that its search and its prior centre on the pitch
+    the image shows for that count; with several, the result with the lowest mean loss over
+    the seeds wins, and it counts as an improvement only if that loss is below the nets'
+    guess's.  ``on_eval`` sees the evaluations of all searches in one count.  ``choose``:
+    that of :func:`search_stages`."""
     results: list[SearchResult] = []
     for n in counts:
-        results.append(search_stages(objective, neural.replace(n=n), opts,
-                                     _offset(on_eval, results), sigma, choose))
+        start = neural if n == neural.n else same_period(neural, n) or neural.replace(n=n)
+        results.append(search_stages(objective, start, opts, _offset(on_eval, results), sigma,
+                                     choose))
     if len(results) == 1:
         return results[0]
     best = min(results, key=lambda r: r.best_loss)

@@ -163,6 +163,24 @@ def test_ply_counts_each_searched_and_the_lowest_loss_kept():
     assert not kept.improved or kept.best.n == TRUTH.n
 
 
+def test_another_ply_count_is_searched_from_the_nets_stripe_period():
+    """The nets read the stripe period right and the count one too high: the right count,
+    started at the pitch that keeps the period (not the nets' pitch, 3 sigma of the prior
+    away), finds the truth inside a MAP box the nets' pitch would not reach and wins by the
+    loss's other groups (a penalty of the wrong count here)."""
+    def period(p, seed):
+        return ((p.alpha_ply / p.n - TRUTH.alpha_ply / TRUTH.n) / 0.1) ** 2 + 1e-4 * (seed % 3) \
+            + (0.0 if p.n == TRUTH.n else 0.05)
+
+    n = TRUTH.n + 1
+    start = TRUTH.replace(n=n, alpha_ply=TRUTH.alpha_ply * n / TRUTH.n)
+    assert start.alpha_ply - TRUTH.alpha_ply > 3 * 0.5
+    sigma = {"alpha_ply": 0.5}
+    res = search_ply_counts(period, start, [n, TRUTH.n], SearchOptions(params=("alpha_ply",),
+                                                                       budget=30), None, sigma)
+    assert res.best.n == TRUTH.n and abs(res.best.alpha_ply - TRUTH.alpha_ply) < 0.05
+
+
 def test_a_ply_count_scores_its_loss_in_seed_noise_units_less_the_log_prior():
     """Two counts whose losses spread by 0.1414 over two seeds (std of 1.0 and 1.2, of 0.5
     and 0.7): 1.1 / 0.1414 - ln 0.9 = 7.88 against 0.6 / 0.1414 - ln 0.1 = 6.55, so the

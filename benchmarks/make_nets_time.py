@@ -48,7 +48,8 @@ class Data:
 class Training:
     """One ``ipm train`` of the recipe: nets trained one after the other in a process, on a
     kind of dataset with extra options, in lane 1 or 2 (the two processes side by side) of
-    phase 1 or 2 (the script waits for both lanes of a phase before the next)."""
+    phase 1, 2 or 3 (the script waits for both lanes of a phase before the next; phase 3
+    fine-tunes, at the same cost per epoch)."""
 
     nets: tuple[str, ...]
     epochs: int
@@ -68,13 +69,19 @@ RECIPE_DATA = {
     "detail window": Data(("--scale", "1", "--view", "320", "320", "--spp", "4-24"),
                           {"frontlit": 4000 + 200}),
     "whole frame at 0.01 mm": Data(("--scale", "1"), {"frontlit": 200}),
+    "frontlit frame, varied look": Data(("--vary-look", "--vary-material", "--spp", "4-24"),
+                                        {"frontlit": 2000 + 200}),
+    "frontlit test frame, varied look": Data(("--vary-look", "--vary-material"),
+                                             {"frontlit": 200}),
     "backlit frame, varied look": Data(("--setup", "backlit", "--vary-look", "--vary-material",
                                         "--spp", "4-24"), {"backlit": 2000 + 200}),
     "backlit test frame, varied look": Data(("--setup", "backlit", "--vary-look",
                                              "--vary-material"), {"backlit": 200}),
 }
 #: The training images of each dataset kind.
-TRAIN_IMAGES = {"frame": 2000, "detail window": 4000, "backlit frame, varied look": 2000}
+TRAIN_IMAGES = {"frame": 2000, "detail window": 4000, "frontlit frame, varied look": 2000,
+                "backlit frame, varied look": 2000}
+TUNED = "frontlit frame, varied look"
 RECIPE = {
     "frontlit": (
         Training(("alpha", "m"), 18, "frame", 1),
@@ -85,6 +92,10 @@ RECIPE = {
         Training(("alpha",), 16, "detail window", 1, DETAIL_TRAIN, phase=2),
         Training(("alpha_ply",), 24, "frame", 1, phase=2),
         Training(("m",), 28, "detail window", 2, DETAIL_TRAIN, phase=2),
+        Training(("n", "alpha_ply", "R_ply"), 6, TUNED, 1, phase=3),
+        Training(("alpha", "m", "thickness", "flyaways"), 6, TUNED, 1, phase=3),
+        Training(("raw",), 6, TUNED, 2, phase=3, preset="reg"),
+        Training(("r_x", "r_y"), 6, TUNED, 2, phase=3),
     ),
     "backlit": (
         Training(("alpha", "m"), 18, "backlit frame, varied look", 1, BACKLIT_TRAIN),

@@ -2,7 +2,8 @@
 """Gathers training runs' nets into one ensemble folder (written beside, then swapped in); a
 net of a later run replaces the same net of an earlier one.  A run given as RUN=SUFFIX has
 its nets renamed NAME+SUFFIX (the detail nets, beside the nets of the same parameters).
-The last step of scripts/make_nets.sh:
+OUT may be one of the RUNs (a fine-tune replacing some of its nets).  The last step of
+scripts/make_nets.sh:
 
     python3 scripts/gather_nets.py OUT RUN [RUN=SUFFIX ...]
 """
@@ -14,10 +15,11 @@ from pathlib import Path
 out = Path(sys.argv[1])
 runs = [(Path(r.partition("=")[0]), r.partition("=")[2]) for r in sys.argv[2:]]
 order = ["n", "thickness", "m", "alpha", "r_x", "r_y", "alpha_ply", "R_ply", "flyaways"]
-order += [net for run, suffix in runs if not suffix  # the multi-task raw net, last
-          for net in json.loads((run / "ensemble.json").read_text())["nets"] if net not in order]
-order += [f"{net}{suffix}" for run, suffix in runs if suffix
-          for net in json.loads((run / "ensemble.json").read_text())["nets"]]
+for with_suffix in (False, True):  # the multi-task raw net after these, the detail nets last
+    for run, suffix in runs:
+        for net in json.loads((run / "ensemble.json").read_text())["nets"]:
+            if bool(suffix) == with_suffix and f"{net}{suffix}" not in order:
+                order.append(f"{net}{suffix}")
 tmp = out.with_name(out.name + ".new")
 shutil.rmtree(tmp, ignore_errors=True)
 tmp.mkdir(parents=True)

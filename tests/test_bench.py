@@ -177,10 +177,12 @@ def test_make_nets_time_recipe_is_the_scripts():
     backlit = sum(d.images.get("backlit", 0) for d in RECIPE_DATA.values())
     assert frontlit == sum(counts) and backlit == sum(counts[:3])
     assert TRAIN_IMAGES == {"frame": counts[0], "detail window": counts[3],
+                            "frontlit frame, varied look": counts[6],
                             "backlit frame, varied look": counts[0]}
-    look = re.search(r'look=\(--setup "\$SETUP" ([^)]*)\)', script).group(1).split()
-    for kind in ("backlit frame, varied look", "backlit test frame, varied look"):
-        assert set(look) <= set(RECIPE_DATA[kind].options), kind
+    varied = re.search(r'varied=\(--setup "\$SETUP" ([^)]*)\)', script).group(1).split()
+    for kind in ("backlit frame, varied look", "backlit test frame, varied look",
+                 "frontlit frame, varied look", "frontlit test frame, varied look"):
+        assert set(varied) <= set(RECIPE_DATA[kind].options), kind
     trained = {(tuple(n.split(",")), int(e)) for n, e in
                re.findall(r"--nets (\S+) --epochs (\d+)", script)}
     assert {(t.nets, t.epochs) for t in RECIPE["frontlit"]} == trained
@@ -188,8 +190,9 @@ def test_make_nets_time_recipe_is_the_scripts():
         (t.nets, t.epochs) for t in RECIPE["frontlit"] if t.data == "frame"} - {
         (("alpha_ply",), 24)}
     assert [t.preset for t in RECIPE["backlit"] if t.nets == ("raw",)] == ["reg"]
-    assert [t.preset for t in RECIPE["frontlit"] if t.nets == ("raw",)] == ["reg"]
+    assert [t.preset for t in RECIPE["frontlit"] if t.nets == ("raw",)] == ["reg", "reg"]
     assert "--preset reg --nets raw --epochs 12" in script
+    assert "--preset reg --nets raw --epochs 6" in script
 
 
 def test_interval_coverage_counts_the_truths_inside(tmp_path):

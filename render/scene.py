@@ -200,10 +200,10 @@ def soft_boxes(opts: SceneOptions) -> list[tuple[str, tuple[float, float, float]
     return out
 
 
-def look_parameters(opts: SceneOptions) -> dict[str, float]:
-    """The ``mi.traverse`` keys and values of ``opts``' lamps, card, room light and (backlit)
-    fiber opacity, so that a loaded scene takes another :func:`scaled_options` without
-    loading anew."""
+def look_parameters(opts: SceneOptions) -> dict[str, Any]:
+    """The ``mi.traverse`` keys and values of ``opts``' lamps (strength and, frontlit, place),
+    card, room light and (backlit) fiber opacity, so that a loaded scene takes another
+    :func:`scaled_options` without loading anew."""
     room = {"room.radiance.value": opts.room_light}
     if opts.setup == "backlit":
         return {"panel.emitter.radiance.value": opts.panel,

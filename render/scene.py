@@ -24,8 +24,9 @@ y -> world z: a cyclic permutation, so a rotation).
   about 1 %; an orthographic view makes the pixel pitch exact everywhere
   (:data:`ipm.frame.PIXEL_SIZE_MM` / ``scale``) and so an image tells absolute sizes.
 * Light: two soft boxes above-left and above-right in front of the yarn (the usual two-lamp
-  copy stand) and a dim uniform room light; the backdrop is a matte dark-grey card far enough
-  behind the yarn (50 mm) that no flyaway crosses it and out of the lights' specular path.
+  copy stand; a varied look turns and tilts them, :func:`soft_boxes`) and a dim uniform
+  room light; the backdrop is a matte dark-grey card far enough behind the yarn (50 mm)
+  that no flyaway crosses it and out of the lights' specular path.
 * Fibers: Mitsuba's ``principled`` BSDF with the yarn's albedo as base colour, a rough
   specular lobe and sheen (the soft grazing highlight of textile fibers).  Mitsuba's
   ``hair`` BSDF (Chiang et al. 2016, behind the Blender shader the paper used) was slower

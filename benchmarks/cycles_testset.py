@@ -10,7 +10,9 @@ from its own seed and recorded in the manifest.
     python -m ipm.benchmarks.cycles_testset --setup backlit --count 60 --out data/cycles-backlit
 
 Resumable: images already listed in the manifest are kept.  16 x 6 mm at 0.04 mm per pixel
-(the nets' own pitch), 400 x 150 px, 16 samples, 4 bounces.
+(the nets' own pitch), 400 x 150 px, 16 samples, 4 bounces; ``--pixel-size 0.01`` renders
+the same yarns and scenes at the paper's pitch (1600 x 600 px), where the detail nets read
+``alpha`` and ``m``.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from ipm.prior import GuidedPrior
 
 SEED = 31_415_926
 PIXEL_SIZE_MM = 0.04
-FRAME = (400, 150)
+FRAME_MM = (16.0, 6.0)
 SAMPLES = 16
 #: Generator axes (x, y, z) -> Blender world: the yarn along world x, seen from +z.
 TO_WORLD = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -67,7 +69,10 @@ def main() -> None:
     ap.add_argument("--out", required=True)
     ap.add_argument("--blender-python", default="/opt/bpyenv/bin/python")
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--pixel-size", type=float, default=PIXEL_SIZE_MM,
+                    help="mm per pixel at the yarn (the frame stays 16 x 6 mm)")
     args = ap.parse_args()
+    frame = tuple(round(mm / args.pixel_size) for mm in FRAME_MM)
     out = Path(args.out)
     (out / "images").mkdir(parents=True, exist_ok=True)
     done = {}
@@ -89,14 +94,14 @@ def main() -> None:
             npz = Path(tmp) / f"{i:06d}.npz"
             np.savez(npz, points=fibers.points.astype(np.float64) @ TO_WORLD.T,
                      offsets=fibers.offsets, radius=fibers.round_radii(), color=color,
-                     frame=np.array(FRAME), frame_mm=FRAME[0] * PIXEL_SIZE_MM,
+                     frame=np.array(frame), frame_mm=FRAME_MM[0],
                      samples=SAMPLES, seed=i, threads=args.threads, setup=args.setup,
                      **{k: np.array(x) for k, x in values.items()})
             image = f"images/{i:06d}.png"
             jobs.append({"npz": str(npz), "png": str(out / image)})
             records[i] = {"index": i, "image": image, "split": "test", "seed": seed,
-                          "params": params.to_dict(), "pixel_size_mm": PIXEL_SIZE_MM,
-                          "width": FRAME[0], "height": FRAME[1], "setup": args.setup,
+                          "params": params.to_dict(), "pixel_size_mm": args.pixel_size,
+                          "width": frame[0], "height": frame[1], "setup": args.setup,
                           "renderer": "cycles", "scene": values}
         if jobs:
             batch = Path(tmp) / "batch.json"
@@ -115,7 +120,7 @@ def main() -> None:
     records = _write_manifest(out, records, done, finished if jobs else set())
     write_text(out / "dataset.json", json.dumps({"setup": args.setup, "renderer": "cycles",
                                                  "seed": SEED, "count": args.count,
-                                                 "pixel_size_mm": PIXEL_SIZE_MM,
+                                                 "pixel_size_mm": args.pixel_size,
                                                  "samples": SAMPLES}, indent=2))
     print(f"{len(records)} images in {out}")
 

@@ -78,6 +78,10 @@ def main() -> None:
     done = {}
     if (out / MANIFEST).is_file():
         done = {r["index"]: r for r in map(json.loads, (out / MANIFEST).read_text().splitlines())}
+    for r in done.values():
+        if (r["setup"], r["pixel_size_mm"]) != (args.setup, args.pixel_size):
+            raise SystemExit(f"{out} holds a {r['setup']} set at {r['pixel_size_mm']} mm per "
+                             "pixel; resume it with those or choose another --out")
     setup_seed = {"frontlit": 1, "backlit": 2}[args.setup]
     yarns = GuidedPrior().sample_many(args.count, seed=SEED)
     jobs, records = [], dict(done)
@@ -119,7 +123,7 @@ def main() -> None:
                 raise SystemExit(f"Blender failed: {proc.stderr.read().strip()[-500:]}")
     records = _write_manifest(out, records, done, finished if jobs else set())
     write_text(out / "dataset.json", json.dumps({"setup": args.setup, "renderer": "cycles",
-                                                 "seed": SEED, "count": args.count,
+                                                 "seed": SEED, "count": len(records),
                                                  "pixel_size_mm": args.pixel_size,
                                                  "samples": SAMPLES}, indent=2))
     print(f"{len(records)} images in {out}")

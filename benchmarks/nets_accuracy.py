@@ -1,7 +1,8 @@
 """Accuracy of a trained ensemble on a held-out dataset made with ``ipm generate`` at seeds
 never used for training: per-parameter MAE in raw units and in % of the parameter's
-interval, beside the predict-the-mean baseline (the mean training label, stored with each
-net) and the paper's validation table; ply-count and thickness-class accuracy beside the
+interval and the mean signed error (a bias: how much of the error is one direction), beside
+the predict-the-mean baseline (the mean training label, stored with each net) and the
+paper's validation table; ply-count and thickness-class accuracy beside the
 majority class.  ``--blur-mm`` blurs every photo first (a Gaussian of that sigma in mm, in
 linear light: :meth:`ipm.photo.Photo.defocused`), to see how the nets hold up on a
 photo with the defocus a render lacks.  ``--view-mm W H`` cuts every photo to its central
@@ -95,26 +96,30 @@ def main() -> None:
     true = [r.params for r in records]
     pairs = list(zip(pred, true, strict=True))
     base = ens.mean_prediction(records[0].pixel_size_mm)  # a dataset has one scale
-    rows = ["| parameter | MAE | % of range | baseline MAE | % of range | vs baseline | "
-            "paper (val.) |", "|---|---|---|---|---|---|---|"]
+    rows = ["| parameter | MAE | % of range | mean signed error, % of range | baseline MAE | "
+            "% of range | vs baseline | paper (val.) |", "|---|---|---|---|---|---|---|---|"]
     for k in PARAM_ORDER:
         if k in ("n", "t_x", "t_y"):
             continue
         iv = PAPER_INTERVALS[k]
         span = iv.width
-        mae = float(np.mean([abs(getattr(p, k) - getattr(t, k)) for p, t in pairs]))
+        err = np.array([getattr(p, k) - getattr(t, k) for p, t in pairs])
+        mae = float(np.mean(np.abs(err)))
         b = float(np.mean([abs(base[k] - getattr(t, k)) for t in true]))
         name = f"**{k}**" if k in RAW_CONTINUOUS else k
-        rows.append(f"| {name} | {mae:.4g} {iv.unit} | {100 * mae / span:.1f} | {b:.4g} | "
+        rows.append(f"| {name} | {mae:.4g} {iv.unit} | {100 * mae / span:.1f} | "
+                    f"{100 * err.mean() / span:+.1f} | {b:.4g} | "
                     f"{100 * b / span:.1f} | {100 * (1 - mae / b):+.0f}% | "
                     f"{PAPER_VALIDATION_MAE.get(k, '')} |")
     rows += ["", alpha_signal(pairs), "", coverage(pairs, ens.sigma(records[0].pixel_size_mm))]
     acc_n = np.mean([p.n == t.n for p, t in pairs])
+    bias_n = np.mean([p.n - t.n for p, t in pairs])
     acc_t = np.mean([p.thickness == t.thickness for p, t in pairs])
     maj_n = max(np.mean([t.n == c for t in true]) for c in range(2, 7))
     maj_t = max(np.mean([t.thickness == c for t in true]) for c in THICKNESS_CLASSES)
     rows += ["", f"Ply count n: accuracy {100 * acc_n:.1f}% (majority class "
-             f"{100 * maj_n:.1f}%).  Fiber thickness class: accuracy {100 * acc_t:.1f}% "
+             f"{100 * maj_n:.1f}%), mean signed error {bias_n:+.2f} plies.  Fiber thickness "
+             f"class: accuracy {100 * acc_t:.1f}% "
              f"(majority class {100 * maj_t:.1f}%).", "",
              f"{len(records)} images from `{args.data}`"
              + (f", blurred by a Gaussian of sigma {args.blur_mm:g} mm" if args.blur_mm else "")

@@ -48,8 +48,8 @@ class Data:
 class Training:
     """One ``ipm train`` of the recipe: nets trained one after the other in a process, on a
     kind of dataset with extra options, in lane 1 or 2 (the two processes side by side) of
-    phase 1, 2 or 3 (the script waits for both lanes of a phase before the next; phase 3
-    fine-tunes, at the same cost per epoch)."""
+    phase 1 to 4 (the script waits for both lanes of a phase before the next; phases 3 and
+    4 fine-tune, at the same cost per epoch)."""
 
     nets: tuple[str, ...]
     epochs: int
@@ -73,6 +73,9 @@ RECIPE_DATA = {
                                         {"frontlit": 2000 + 200}),
     "frontlit test frame, varied look": Data(("--vary-look", "--vary-material"),
                                              {"frontlit": 200}),
+    "detail window, varied look": Data(("--scale", "1", "--view", "320", "320", "--spp", "4-24",
+                                        "--vary-look", "--vary-material"),
+                                       {"frontlit": 2000 + 200}),
     "backlit frame, varied look": Data(("--setup", "backlit", "--vary-look", "--vary-material",
                                         "--spp", "4-24"), {"backlit": 2000 + 200}),
     "backlit test frame, varied look": Data(("--setup", "backlit", "--vary-look",
@@ -80,7 +83,7 @@ RECIPE_DATA = {
 }
 #: The training images of each dataset kind.
 TRAIN_IMAGES = {"frame": 2000, "detail window": 4000, "frontlit frame, varied look": 2000,
-                "backlit frame, varied look": 2000}
+                "detail window, varied look": 2000, "backlit frame, varied look": 2000}
 TUNED = "frontlit frame, varied look"
 RECIPE = {
     "frontlit": (
@@ -96,6 +99,8 @@ RECIPE = {
         Training(("alpha", "m", "thickness", "flyaways"), 6, TUNED, 1, phase=3),
         Training(("raw",), 6, TUNED, 2, phase=3, preset="reg"),
         Training(("r_x", "r_y"), 6, TUNED, 2, phase=3),
+        Training(("alpha",), 6, "detail window, varied look", 1, DETAIL_TRAIN, phase=4),
+        Training(("m",), 6, "detail window, varied look", 2, DETAIL_TRAIN, phase=4),
     ),
     "backlit": (
         Training(("alpha", "m"), 18, "backlit frame, varied look", 1, BACKLIT_TRAIN),

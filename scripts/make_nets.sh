@@ -22,7 +22,8 @@
 # boxes about the yarn, greys the card from near-black to mid-grey, and the rest as
 # backlit).  Trained on the varied frames from scratch in the recipe's epochs, the nets
 # were worse on the varied validation set than the nets of the scene's own look (the
-# ply-count net at chance); fine-tuned, better (benchmarks/README.md).
+# ply-count net at chance); fine-tuned, better (benchmarks/README.md).  With DETAIL=1 the
+# two detail nets are fine-tuned the same way on 2000 + 200 windows in the varied look.
 #
 # DETAIL=1 (the default for frontlit) adds detail nets for the fiber twist `alpha` and the
 # fibers per ply `m`: trained on 3.2 x 3.2 mm windows rendered at 0.01 mm per pixel (`ipm
@@ -113,5 +114,20 @@ if [ "$TUNE" = 1 ]; then
   wait "$first"; wait "$second"
   tune_runs=("$RUNS/tune-a" "$RUNS/tune-b" "$RUNS/tune-c")
   if [ "$RAW" = 1 ]; then tune_runs+=("$RUNS/tune-r"); fi
+  if [ "$DETAIL" = 1 ]; then
+    # the detail nets from make-e and make-f, on windows of the first 2000 training yarns
+    # and of the validation yarns in the varied look
+    view=(--scale 1 --view 320 320 --spp 4-24 "${varied[@]}")
+    ipm generate --out "$DATA-look-detail/train" --count 2000 --seed 0 "${view[@]}"
+    ipm generate --out "$DATA-look-detail/val" --count 200 --seed 1 --split val "${view[@]}"
+    detail=(--preset ensemble --data "$DATA-look-detail/train" --val "$DATA-look-detail/val"
+            --blur 1.5 --seed 0 --lr 3e-4 --input-scale 1 --crop 256 256 "${augment[@]}")
+    (OMP_NUM_THREADS=1 ipm train "${detail[@]}" --init "$RUNS/make-e" --nets alpha --epochs 6 \
+       --out "$RUNS/tune-e") & first=$!
+    (OMP_NUM_THREADS=1 ipm train "${detail[@]}" --init "$RUNS/make-f" --nets m --epochs 6 \
+       --out "$RUNS/tune-f") & second=$!
+    wait "$first"; wait "$second"
+    tune_runs+=("$RUNS/tune-e=-detail" "$RUNS/tune-f=-detail")
+  fi
   python3 "$(dirname "$0")/gather_nets.py" "$OUT" "$OUT" "${tune_runs[@]}"
 fi

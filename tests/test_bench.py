@@ -178,10 +178,12 @@ def test_make_nets_time_recipe_is_the_scripts():
     assert frontlit == sum(counts) and backlit == sum(counts[:3])
     assert TRAIN_IMAGES == {"frame": counts[0], "detail window": counts[3],
                             "frontlit frame, varied look": counts[6],
+                            "detail window, varied look": counts[9],
                             "backlit frame, varied look": counts[0]}
     varied = re.search(r'varied=\(--setup "\$SETUP" ([^)]*)\)', script).group(1).split()
     for kind in ("backlit frame, varied look", "backlit test frame, varied look",
-                 "frontlit frame, varied look", "frontlit test frame, varied look"):
+                 "frontlit frame, varied look", "frontlit test frame, varied look",
+                 "detail window, varied look"):
         assert set(varied) <= set(RECIPE_DATA[kind].options), kind
     trained = {(tuple(n.split(",")), int(e)) for n, e in
                re.findall(r"--nets (\S+) --epochs (\d+)", script)}

@@ -117,14 +117,14 @@ if [ "$TUNE" = 1 ]; then
   if [ "$DETAIL" = 1 ]; then
     # the detail nets from make-e and make-f, on windows of the first 2000 training yarns
     # and of the validation yarns in the varied look
-    view=(--scale 1 --view 320 320 --spp 4-24 "${varied[@]}")
-    ipm generate --out "$DATA-look-detail/train" --count 2000 --seed 0 "${view[@]}"
-    ipm generate --out "$DATA-look-detail/val" --count 200 --seed 1 --split val "${view[@]}"
-    detail=(--preset ensemble --data "$DATA-look-detail/train" --val "$DATA-look-detail/val"
+    windows=(--scale 1 --view 320 320 --spp 4-24 "${varied[@]}")
+    ipm generate --out "$DATA-look-detail/train" --count 2000 --seed 0 "${windows[@]}"
+    ipm generate --out "$DATA-look-detail/val" --count 200 --seed 1 --split val "${windows[@]}"
+    retune=(--preset ensemble --data "$DATA-look-detail/train" --val "$DATA-look-detail/val"
             --blur 1.5 --seed 0 --lr 3e-4 --input-scale 1 --crop 256 256 "${augment[@]}")
-    (OMP_NUM_THREADS=1 ipm train "${detail[@]}" --init "$RUNS/make-e" --nets alpha --epochs 6 \
+    (OMP_NUM_THREADS=1 ipm train "${retune[@]}" --init "$RUNS/make-e" --nets alpha --epochs 6 \
        --out "$RUNS/tune-e") & first=$!
-    (OMP_NUM_THREADS=1 ipm train "${detail[@]}" --init "$RUNS/make-f" --nets m --epochs 6 \
+    (OMP_NUM_THREADS=1 ipm train "${retune[@]}" --init "$RUNS/make-f" --nets m --epochs 6 \
        --out "$RUNS/tune-f") & second=$!
     wait "$first"; wait "$second"
     tune_runs+=("$RUNS/tune-e=-detail" "$RUNS/tune-f=-detail")

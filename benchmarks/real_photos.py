@@ -115,7 +115,8 @@ def main() -> None:
     stages = {} if args.params is None else search_stages_of(args.params)
     search = SearchOptions(**stages, polish=args.polish,
                            **({} if args.budget is None else {"budget": args.budget}))
-    options = FitOptions(search=search, ply_counts=args.ply_counts, match_size=args.match_size)
+    options = FitOptions(search=search, ply_counts=args.ply_counts, match_size=args.match_size,
+                         outside=args.params is None and not args.no_prior)
     args.out.mkdir(parents=True, exist_ok=True)
     rows = fit_all(args.out / "fits.jsonl", records, lambda i, photo: ensemble.predict(photo),
                    options, None if args.no_prior else ensemble.sigma(args.pixel_size),

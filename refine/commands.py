@@ -22,6 +22,7 @@ from ipm.render.commands import SetupOpt
 
 #: The search's defaults, one place for both commands: :class:`SearchOptions`.
 _DEFAULT = SearchOptions()
+_DEFAULT_PARAMS = ";".join(",".join(stage) for stage in _DEFAULT.stages)
 _LEARNED_HELP = ("weight of the nets' readings in the loss: renders the nets read as they "
                  "read the photo (0: the image statistics alone)")
 
@@ -53,7 +54,10 @@ def fit(
     refine: Annotated[bool, typer.Option("--refine/--no-refine", help="refine the nets' "
                                          "guess by render-and-compare: searches the ply "
                                          "twist alpha_ply, backlit from the ply count "
-                                         "the core's outline chooses (measured in "
+                                         "the core's outline chooses; a yarn far thinner "
+                                         "or thicker than the nets' reading has its "
+                                         "thickness, flyaways and ply twist searched in "
+                                         "turn without their prior (measured in "
                                          "benchmarks/README.md)")]
     = False,
     pixel_size: Annotated[float | None, typer.Option(help="mm per photo pixel at the yarn; "
@@ -76,8 +80,7 @@ def fit(
     = DEFAULT_PLY_COUNTS,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = _DEFAULT.algorithm,
     polish: Annotated[int, typer.Option(min=0, help=_POLISH_HELP)] = _DEFAULT.polish,
-    params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = ";".join(
-        ",".join(stage) for stage in _DEFAULT.stages),
+    params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = _DEFAULT_PARAMS,
     prior: Annotated[bool, typer.Option("--prior/--no-prior", help="keep the search near the "
                                         "nets' guess, weighted by the nets' validation error "
                                         "(MAP); --no-prior: the image loss alone")] = True,
@@ -103,7 +106,8 @@ def fit(
     options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
                                               budget=budget, time_s=time_limit, polish=polish),
                          ply_counts=ply_counts, learned=learned, detail=detail,
-                         match_size=match_size, choose_count=not nets_ply_count)
+                         match_size=match_size, choose_count=not nets_ply_count,
+                         outside=params == _DEFAULT_PARAMS and prior)
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
                                          "params.json", "knit.png", "knit.json")], [photo])
     if knit is not None:
@@ -171,7 +175,7 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
                                   panels[0].shape[1], out))
         labels.append(f"{knit} patch of the {'refined' if refine else 'neural'} yarn")
     write_png(out / "compare.png", compare_image(panels, labels))
-    write_text(out / "params.json", json.dumps(result.to_dict(options, pixel_size, shot.setup),
+    write_text(out / "params.json", json.dumps(result.to_dict(pixel_size, shot.setup),
                                                 indent=2))
     typer.echo(f"loss neural {result.loss_neural:.4f} -> refined {result.loss_refined:.4f} "
                f"({result.seconds:.0f} s); wrote {out}/params.json, compare.png", err=True)
@@ -210,8 +214,7 @@ def compare(
     = _DEFAULT.budget,
     algorithm: Annotated[str, typer.Option(help="NLopt algorithm")] = _DEFAULT.algorithm,
     polish: Annotated[int, typer.Option(min=0, help=_POLISH_HELP)] = _DEFAULT.polish,
-    params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = ";".join(
-        ",".join(stage) for stage in _DEFAULT.stages),
+    params: Annotated[str, typer.Option(help=_PARAMS_HELP)] = _DEFAULT_PARAMS,
     ply_counts: Annotated[int, typer.Option(min=1, max=5, help="search with each of the "
                                             "nets' N most likely ply counts and keep the "
                                             "lowest loss (1: the nets' ply count only)")]
@@ -248,7 +251,8 @@ def compare(
                                               budget=budget, polish=polish),
                          ply_counts=ply_counts,
                          learned=learned, detail=detail, match_size=match_size,
-                         choose_count=not nets_ply_count)
+                         choose_count=not nets_ply_count,
+                         outside=params == _DEFAULT_PARAMS and prior)
     listed = cmp.photos_in(photos, pixel_size, count, setup)
     setup = listed[0].setup
     ensemble = Ensemble.load(models, setup=setup)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 from scipy.stats import norm
@@ -40,6 +40,7 @@ from ipm.refine.search import (
     ply_count_scores,
     same_period,
     search_ply_counts,
+    search_stages_of,
 )
 from ipm.refine.stats import centre_rows, core_width, yarn_centre, yarn_tilt
 from ipm.render.photometric import Photometric
@@ -55,6 +56,14 @@ MIN_CORE_CONTRAST = 0.03
 #: that thickness, and on the real photos, whose yarns the nets' render far wider, it
 #: misread the count (docs/real-photos-count; the widths: benchmarks/results/count_width.md).
 COUNT_WIDTH_FACTOR = 1.5
+#: The search of a yarn outside the nets' range (``outside`` of :class:`FitOptions`): its
+#: thickness, then its flyaways, then the ply twist, each stage from the best of the one
+#: before, a local polish of each stage of several parameters, and no prior from the nets,
+#: whose reading of such a yarn is off their training data.  The recipe that fitted the 24
+#: real backlit photos (docs/real-photos-count-staged), whose yarns are thinner than any the
+#: nets know.
+OUTSIDE_PARAMS = "R_ply,r_x,r_y;g,l_hair,l_loop,d_mean;alpha_ply"
+OUTSIDE_POLISH = 16
 
 
 @dataclass(frozen=True)
@@ -76,7 +85,11 @@ class FitOptions:
     stage that does, from the stages before's best.  Why not always first: the choice
     sees the thickness it starts from, and on the real photos, thinner than any yarn the
     nets know, at the nets' thickness it chose 4 plies for most of the 2-ply yarns
-    (docs/real-photos-count)."""
+    (docs/real-photos-count).  outside: when the nets' yarn renders more than
+    :data:`COUNT_WIDTH_FACTOR` times wider or narrower than the photo's core, the yarn is
+    outside the nets' range (benchmarks/results/count_width.md): search it as
+    :data:`OUTSIDE_PARAMS` says, without the nets' prior, instead of ``search`` (the CLI
+    turns this off when the user chooses the search, ``--params`` or ``--no-prior``)."""
 
     scale: float = 0.2
     spp: int = 4
@@ -89,6 +102,7 @@ class FitOptions:
     detail: float = 0.0
     match_size: bool = False
     choose_count: bool = True
+    outside: bool = True
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.scale <= 1 or not 0.05 <= self.display_scale <= 1:
@@ -99,6 +113,16 @@ class FitOptions:
         if not (0 <= self.learned < 1e6 and 0 <= self.detail < 1e6):
             raise UserError(f"the weights of the nets' readings must be >= 0, got "
                             f"{self.learned}, {self.detail}")
+
+    def outside_search(self) -> FitOptions:
+        """These options with the search of a yarn outside the nets' range
+        (:data:`OUTSIDE_PARAMS`; ``search``'s algorithm, seeds and budget, raised to the
+        least its four-parameter stage takes)."""
+        stages = search_stages_of(OUTSIDE_PARAMS)
+        most = max(len(s) for s in (stages["params"], *stages["later"]))
+        search = replace(self.search, **stages, budget=max(self.search.budget, 2 * most + 2),
+                         polish=max(self.search.polish, OUTSIDE_POLISH))
+        return replace(self, search=search, outside=False)
 
     def count_groups(self, setup: str) -> tuple[str, ...]:
         """The groups a fit of a photo of ``setup`` chooses its ply count by (``choose_count``;
@@ -145,6 +169,7 @@ class FitResult:
     tilt_deg: float = 0.0
     sigma: dict[str, float] | None = None
     count_scores: dict[int, float] = field(default_factory=dict)  # choose_ply_count's
+    options: FitOptions | None = None  # those the fit ran with (FitOptions.outside_search)
 
     def intervals(self) -> dict[str, tuple[float, float, str]]:
         """A :data:`LEVEL` interval per continuous raw-yarn parameter of the refined result,
@@ -165,8 +190,8 @@ class FitResult:
                 out[k] = (*nets_interval(k, v, self.sigma[k]), "nets' validation error")
         return out
 
-    def to_dict(self, options: FitOptions, pixel_size_mm: float, setup: str = "frontlit"
-                ) -> dict:
+    def to_dict(self, pixel_size_mm: float, setup: str = "frontlit") -> dict:
+        options = self.options or FitOptions()
         return {
             "neural": self.neural.to_dict(), "refined": self.refined.to_dict(),
             "loss": {"neural": self.loss_neural, "refined": self.loss_refined},
@@ -312,21 +337,35 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         warnings.append(f"no detail nets read photos of {photo.pixel_size_mm:g} mm per pixel "
                         "(the shipped ones need 0.0125 mm or finer); the loss has no detail "
                         "window")
-    objective = RenderObjective(renderer, small, scale, options.spp,
-                                weights=search_weights(options.search.searched),
-                                seeds_per_eval=options.seeds_per_eval, tilt_deg=tilt,
-                                readings=readings if learned else None,
-                                readings_weight=options.learned, frame=frame, detail=window)
+
+    def objective_of(opts: FitOptions) -> RenderObjective:
+        return RenderObjective(renderer, small, scale, opts.spp,
+                               weights=search_weights(opts.search.searched),
+                               seeds_per_eval=opts.seeds_per_eval, tilt_deg=tilt,
+                               readings=readings if learned else None,
+                               readings_weight=opts.learned, frame=frame, detail=window)
+
+    objective = objective_of(options)
     if not seen:
         warnings.append("no yarn found in the photo (its core does not stand out from the "
                         "background); the search is skipped and the neural result kept")
         refine = False
     else:
         neural = match_colour(objective, neural, small)
+    if refine and options.outside:
+        ratio = width_ratio(objective, neural, small)
+        if not 1 / COUNT_WIDTH_FACTOR <= ratio <= COUNT_WIDTH_FACTOR:
+            warnings.append(f"the nets' yarn renders {ratio:.2g} times as wide as the photo's "
+                            "core: the yarn is outside the nets' range, so its thickness, "
+                            "flyaways and ply twist are searched in turn without their "
+                            f"prior (--params '{OUTSIDE_PARAMS}' --no-prior)")
+            options, sigma = options.outside_search(), None
+            objective = objective_of(options)
     if not refine:
         loss = _mean_loss(objective, neural, options.search)
         return FitResult(neural, neural, loss, loss, False, warnings,
-                         seconds=time.perf_counter() - t0, tilt_deg=tilt, sigma=sigma)
+                         seconds=time.perf_counter() - t0, tilt_deg=tilt, sigma=sigma,
+                         options=options)
     start = (match_colour(objective, match_size(objective, neural, small), small)
              if options.match_size else neural)
     scores: dict[int, float] = {}
@@ -367,7 +406,7 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
                         + "; the neural result is kept")
     return FitResult(neural, refined, loss_neural, best_loss if improved else loss_neural,
                      improved, warnings, result, time.perf_counter() - t0, tilt, sigma,
-                     scores)
+                     scores, options)
 
 
 def search_view(photo: Photo, scale: float) -> tuple[float, Frame | None]:

@@ -381,3 +381,38 @@ def test_the_width_ratio_of_a_render_to_the_photo_core():
     for factor in (2.0, 0.5):
         thick = truth.replace(R_ply=truth.R_ply * factor, r_y=truth.r_y * factor)
         assert width_ratio(objective, thick, photo) == pytest.approx(factor, rel=0.05)
+
+
+def test_a_yarn_far_thinner_than_the_nets_read_is_searched_thickness_first(photo):
+    """Nets that read golden 2.5 times too thick put it outside their range: the fit says so,
+    searches the thickness, flyaways and ply twist in turn without their prior, and its
+    render's core comes nearer the photo's width (measured here by the core widths of the
+    photo and of the two renders); a reading within the gate keeps the default search."""
+    from ipm.photo import Photo
+    from ipm.refine.fit import OUTSIDE_PARAMS, FitOptions, fit, search_objective, width_ratio
+    from ipm.refine.search import SearchOptions, search_stages_of
+    from ipm.render.renderer import Renderer
+
+    shot, renderer = Photo.read(photo, 0.04), Renderer()
+    truth = preset("golden")
+    thick = truth.replace(**{k: 2.5 * getattr(truth, k) for k in ("R_ply", "r_x", "r_y")})
+    options = FitOptions(scale=0.1, spp=2, search=SearchOptions(budget=8), display_spp=2)
+    sigma = {"R_ply": 0.01, "r_x": 0.01, "r_y": 0.01, "alpha_ply": 0.1}
+    result = fit(shot, thick, renderer, options, sigma=sigma)
+    assert any("outside the nets' range" in w for w in result.warnings), result.warnings
+    stages = search_stages_of(OUTSIDE_PARAMS)
+    assert result.options.search.stages == (stages["params"], *stages["later"])
+    assert result.sigma is None and result.options.search.polish > 0
+    objective, small = search_objective(shot, renderer, options)
+    before = width_ratio(objective, result.neural, small)
+    after = width_ratio(objective, result.refined, small)
+    assert before > 2 and abs(np.log(after)) < 0.75 * abs(np.log(before)), (before, after)
+    kept = fit(shot, truth, renderer, replace_budget(options, 4), sigma=sigma)
+    assert kept.options.search.stages == (("alpha_ply",),) and kept.sigma == sigma
+    assert not any("outside the nets' range" in w for w in kept.warnings)
+
+
+def replace_budget(options, budget):
+    from dataclasses import replace
+
+    return replace(options, search=replace(options.search, budget=budget))

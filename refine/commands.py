@@ -54,11 +54,11 @@ def fit(
     refine: Annotated[bool, typer.Option("--refine/--no-refine", help="refine the nets' "
                                          "guess by render-and-compare: searches the ply "
                                          "twist alpha_ply, backlit from the ply count "
-                                         "the core's outline chooses; a yarn far thinner "
-                                         "or thicker than the nets' reading has its "
-                                         "thickness, flyaways and ply twist searched in "
-                                         "turn without their prior (measured in "
-                                         "benchmarks/README.md)")]
+                                         "the core's outline chooses; backlit, a yarn "
+                                         "far thinner or thicker than the nets' reading "
+                                         "has its thickness, flyaways and ply twist "
+                                         "searched in turn without their prior (measured "
+                                         "in benchmarks/README.md)")]
     = False,
     pixel_size: Annotated[float | None, typer.Option(help="mm per photo pixel at the yarn; "
                                                      "default: --calibration, or the ipm "

@@ -51,10 +51,12 @@ from ipm.render.scene import Frame, frame_size, pixel_size_mm
 CLIPPED_WARN = 0.02
 #: The core must differ from the background by this much (sRGB) for a yarn to be seen.
 MIN_CORE_CONTRAST = 0.03
-#: A fit chooses its ply count (:func:`choose_ply_count`) only from a yarn whose render's
-#: core is within this factor of the photo's width: the choice reads the core's outline at
-#: that thickness, and on the real photos, whose yarns the nets' render far wider, it
-#: misread the count (docs/real-photos-count; the widths: benchmarks/results/count_width.md).
+#: A yarn whose render's core is not within this factor of the photo's width is not one the
+#: nets can read: a fit searches its thickness first (``FitOptions.outside``), and chooses
+#: its ply count (:func:`choose_ply_count`) only once within it, since the choice reads the
+#: core's outline at that thickness (on the real photos, whose yarns the nets' render far
+#: wider, it misread the count: docs/real-photos-count; the widths of each set of photos:
+#: benchmarks/results/count_width.md).
 COUNT_WIDTH_FACTOR = 1.5
 #: The search of a yarn outside the nets' range (``outside`` of :class:`FitOptions`): its
 #: thickness, then its flyaways, then the ply twist, each stage from the best of the one
@@ -64,6 +66,10 @@ COUNT_WIDTH_FACTOR = 1.5
 #: nets know.
 OUTSIDE_PARAMS = "R_ply,r_x,r_y;g,l_hair,l_loop,d_mean;alpha_ply"
 OUTSIDE_POLISH = 16
+#: The setups whose photos' core width tells a yarn outside the nets' range.  Not frontlit:
+#: there the core's half-contrast width follows the light, and ipm's own held-out renders,
+#: whose thickness the nets read well, reached the gate too (count_width.md).
+OUTSIDE_SETUPS = ("backlit",)
 
 
 @dataclass(frozen=True)
@@ -85,10 +91,10 @@ class FitOptions:
     stage that does, from the stages before's best.  Why not always first: the choice
     sees the thickness it starts from, and on the real photos, thinner than any yarn the
     nets know, at the nets' thickness it chose 4 plies for most of the 2-ply yarns
-    (docs/real-photos-count).  outside: when the nets' yarn renders more than
-    :data:`COUNT_WIDTH_FACTOR` times wider or narrower than the photo's core, the yarn is
-    outside the nets' range (benchmarks/results/count_width.md): search it as
-    :data:`OUTSIDE_PARAMS` says, without the nets' prior, instead of ``search`` (the CLI
+    (docs/real-photos-count).  outside: in :data:`OUTSIDE_SETUPS`, when the nets' yarn
+    renders more than :data:`COUNT_WIDTH_FACTOR` times wider or narrower than the photo's
+    core, the yarn is outside the nets' range (benchmarks/results/count_width.md): search it
+    as :data:`OUTSIDE_PARAMS` says, without the nets' prior, instead of ``search`` (the CLI
     turns this off when the user chooses the search, ``--params`` or ``--no-prior``)."""
 
     scale: float = 0.2
@@ -352,7 +358,7 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         refine = False
     else:
         neural = match_colour(objective, neural, small)
-    if refine and options.outside:
+    if refine and options.outside and photo.setup in OUTSIDE_SETUPS:
         ratio = width_ratio(objective, neural, small)
         if not 1 / COUNT_WIDTH_FACTOR <= ratio <= COUNT_WIDTH_FACTOR:
             warnings.append(f"the nets' yarn renders {ratio:.2g} times as wide as the photo's "

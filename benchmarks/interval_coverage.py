@@ -28,7 +28,9 @@ from ipm.refine.search import LEVEL, SearchResult
 
 def coverage(report: Path, data: Path, sigma: dict[str, float]) -> dict[str, dict]:
     """Per parameter: the share of the report's photos whose true value lies in the
-    interval, the mean width (share of the parameter's range) and its source."""
+    interval, the mean width (share of the parameter's range) and its source.  A fit made
+    without the nets' prior (``prior`` false in its row: a yarn outside their range) has
+    no nets' interval."""
     truth = {str(r.image): r.params for r in read_manifest(data)}
     held: dict[str, list] = {k: [] for k in RAW_CONTINUOUS}
     for line in (report / "fits.jsonl").read_text().splitlines():
@@ -40,7 +42,7 @@ def coverage(report: Path, data: Path, sigma: dict[str, float]) -> dict[str, dic
                    if v[2].startswith("search profile")}
         search = SearchResult(neural, refined, 0.0, 0.0, row["improved"], intervals=profile)
         result = FitResult(neural, refined, 0.0, 0.0, row["improved"], search=search,
-                           sigma=sigma)
+                           sigma=sigma if row.get("prior", True) else None)
         t = truth[row["image"]]
         for k, (lo, hi, source) in result.intervals().items():
             held[k].append((lo <= getattr(t, k) <= hi, (hi - lo) / PAPER_INTERVALS[k].width,

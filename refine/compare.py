@@ -86,7 +86,8 @@ def fit_row(record: Record, photo: Photo, neural: YarnParams, renderer, options,
             "tilt_deg": res.tilt_deg, "warnings": res.warnings,
             "trace": res.search.trace if res.search else [], "seconds": res.seconds,
             "intervals": {k: list(v) for k, v in res.intervals().items()},
-            "ply_count_scores": {str(n): v for n, v in res.count_scores.items()}}
+            "ply_count_scores": {str(n): v for n, v in res.count_scores.items()},
+            "prior": res.sigma is not None}
 
 
 def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Photo],

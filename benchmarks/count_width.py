@@ -4,7 +4,8 @@ the nets' range and searches its thickness first (``FitOptions.outside``), and w
 a backlit fit chooses its ply count (the choice reads the core's outline at the yarn's
 thickness; where the nets' thickness is far from the photo's, it misread the count:
 docs/real-photos-count).  Per photo, :func:`ipm.refine.fit.width_ratio` of the nets' guess
-in the photo's setup, its fiber colour matched to the photo, as ``ipm fit`` does.
+in the photo's setup, before its fiber colour is matched to the photo, as ``ipm fit`` decides
+the switch.
 
     python -m ipm.benchmarks.count_width --data data-backlit/val --data data-backlit/test \\
         --data data/cycles-backlit --photos ../shared/real-yarns --pixel-size 0.0021 \\
@@ -25,7 +26,7 @@ from ipm.benchmarks.machine import markdown_header, publish
 def ratios(photos: list, setup: str) -> list[float]:
     """:func:`ipm.refine.fit.width_ratio` of the shipped nets' guess for each photo."""
     from ipm.nets.ensemble import Ensemble
-    from ipm.refine.fit import FitOptions, match_colour, search_objective, width_ratio
+    from ipm.refine.fit import FitOptions, search_objective, width_ratio
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
@@ -34,8 +35,7 @@ def ratios(photos: list, setup: str) -> list[float]:
     out = []
     for photo in photos:
         objective, small = search_objective(photo, renderer, FitOptions())
-        guess = match_colour(objective, ens.predict(photo), small)
-        out.append(width_ratio(objective, guess, small))
+        out.append(width_ratio(objective, ens.predict(photo), small))
     return out
 
 
@@ -68,11 +68,11 @@ def main() -> None:
     command = "python -m ipm.benchmarks.count_width " + " ".join(sys.argv[1:])
     text = (markdown_header("The nets' yarn against the photo's core width", command,
                             "mitsuba", "torch")
-            + f"\nThe render of the nets' guess (fiber seed 0, its colour matched to the "
-            f"photo) over the photo's core width (`ipm.refine.fit.width_ratio`); outside a "
-            f"factor {COUNT_WIDTH_FACTOR:g} of 1 a fit searches the yarn's thickness first, "
-            f"without the nets' prior, and only within it does a backlit fit choose its ply "
-            f"count at the nets' thickness.\n\n" + "\n".join(rows) + "\n")
+            + f"\nThe render of the nets' guess (fiber seed 0, before its colour is matched "
+            f"to the photo) over the photo's core width (`ipm.refine.fit.width_ratio`); "
+            f"outside a factor {COUNT_WIDTH_FACTOR:g} of 1 a backlit fit takes the yarn for "
+            f"one outside the nets' range and searches its thickness first, without their "
+            f"prior.\n\n" + "\n".join(rows) + "\n")
     publish(text, args.out, data)
 
 

@@ -356,9 +356,9 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         warnings.append("no yarn found in the photo (its core does not stand out from the "
                         "background); the search is skipped and the neural result kept")
         refine = False
-    else:
-        neural = match_colour(objective, neural, small)
-    if refine and options.outside and photo.setup in OUTSIDE_SETUPS:
+    elif refine and options.outside and photo.setup in OUTSIDE_SETUPS:
+        # the nets' yarn as they read it, before its colour is matched to the photo: the
+        # match changes how dark, and so how wide, a backlit core renders
         ratio = width_ratio(objective, neural, small)
         if not 1 / COUNT_WIDTH_FACTOR <= ratio <= COUNT_WIDTH_FACTOR:
             warnings.append(f"the nets' yarn renders {ratio:.2g} times as wide as the photo's "
@@ -367,6 +367,8 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
                             f"prior (--params '{OUTSIDE_PARAMS}' --no-prior)")
             options, sigma = options.outside_search(), None
             objective = objective_of(options)
+    if seen:
+        neural = match_colour(objective, neural, small)
     if not refine:
         loss = _mean_loss(objective, neural, options.search)
         return FitResult(neural, neural, loss, loss, False, warnings,

@@ -42,7 +42,7 @@ def ratios(photos: list, setup: str) -> list[float]:
 def main() -> None:
     from ipm.benchmarks.report import load_records
     from ipm.photo import Photo
-    from ipm.refine.fit import COUNT_WIDTH_FACTOR
+    from ipm.refine.fit import COUNT_WIDTH_FACTOR, within_gate
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", action="append", default=[], help="a labelled set (repeat)")
@@ -60,7 +60,7 @@ def main() -> None:
     data = {}
     for name, photos in sets.items():
         r = np.array(ratios(photos, photos[0].setup))
-        outside = int(np.sum((r < 1 / COUNT_WIDTH_FACTOR) | (r > COUNT_WIDTH_FACTOR)))
+        outside = sum(not within_gate(x) for x in r)
         data[name] = r.tolist()
         rows.append(f"| `{name}` | {len(r)} | {r.min():.2f} | {np.median(r):.2f} | "
                     f"{r.max():.2f} | {outside} |")

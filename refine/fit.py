@@ -36,6 +36,7 @@ from ipm.refine.search import (
     LEVEL,
     SearchOptions,
     SearchResult,
+    least_budget,
     likeliest_counts,
     ply_count_scores,
     same_period,
@@ -125,8 +126,8 @@ class FitOptions:
         (:data:`OUTSIDE_PARAMS`; ``search``'s algorithm, seeds and budget, raised to the
         least its four-parameter stage takes)."""
         stages = search_stages_of(OUTSIDE_PARAMS)
-        most = max(len(s) for s in (stages["params"], *stages["later"]))
-        search = replace(self.search, **stages, budget=max(self.search.budget, 2 * most + 2),
+        least = least_budget((stages["params"], *stages["later"]))
+        search = replace(self.search, **stages, budget=max(self.search.budget, least),
                          polish=max(self.search.polish, OUTSIDE_POLISH))
         return replace(self, search=search, outside=False)
 
@@ -258,6 +259,12 @@ def image_core_width(img: np.ndarray) -> float:
     return float(core_width(to_tensor(img).mean(dim=1, keepdim=True))[0])
 
 
+def within_gate(ratio: float) -> bool:
+    """Whether a render's core is within :data:`COUNT_WIDTH_FACTOR` of the photo's width
+    (``ratio``: :func:`width_ratio`)."""
+    return 1 / COUNT_WIDTH_FACTOR <= ratio <= COUNT_WIDTH_FACTOR
+
+
 def width_ratio(objective: RenderObjective, params: YarnParams, photo: np.ndarray) -> float:
     """How many times as wide as ``photo``'s core the render of ``params`` is
     (:func:`image_core_width`, fiber seed 0)."""
@@ -360,7 +367,7 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         # the nets' yarn as they read it, before its colour is matched to the photo: the
         # match changes how dark, and so how wide, a backlit core renders
         ratio = width_ratio(objective, neural, small)
-        if not 1 / COUNT_WIDTH_FACTOR <= ratio <= COUNT_WIDTH_FACTOR:
+        if not within_gate(ratio):
             warnings.append(f"the nets' yarn renders {ratio:.2g} times as wide as the photo's "
                             "core: the yarn is outside the nets' range, so its thickness, "
                             "flyaways and ply twist are searched in turn without their "
@@ -383,7 +390,7 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
 
         def with_chosen_count(p: YarnParams) -> YarnParams:
             ratio = width_ratio(objective, p, small)
-            if not 1 / COUNT_WIDTH_FACTOR <= ratio <= COUNT_WIDTH_FACTOR:
+            if not within_gate(ratio):
                 warnings.append(f"the yarn renders {ratio:.2g} times as wide as the photo's "
                                 "core, so its ply count is kept: the count's choice reads "
                                 "the core's outline (a search that fits the thickness first, "

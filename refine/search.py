@@ -131,20 +131,26 @@ class SearchOptions:
         if self.algorithm not in ALGORITHMS:
             raise UserError(f"unknown algorithm {self.algorithm!r}; choose one of "
                             f"{', '.join(ALGORITHMS)}")
-        most = max(len(stage) for stage in self.stages)
-        if self.budget < 2 * most + 2:
-            raise UserError(f"budget must be at least {2 * most + 2} evaluations for "
-                            f"{most} parameters, got {self.budget}")
+        most, least = max(len(stage) for stage in self.stages), least_budget(self.stages)
+        if self.budget < least:
+            raise UserError(f"budget must be at least {least} evaluations for {most} "
+                            f"parameters, got {self.budget}")
         if not 0 < self.width <= 1:
             raise UserError(f"width must be in (0, 1], got {self.width}")
         if self.time_s is not None and not (np.isfinite(self.time_s) and self.time_s > 0):
             raise UserError(f"time must be a positive number of seconds, got {self.time_s}")
-        if self.polish and self.polish < 2 * most + 2:
-            raise UserError(f"polish must be 0 or at least {2 * most + 2} evaluations for "
+        if self.polish and self.polish < least:
+            raise UserError(f"polish must be 0 or at least {least} evaluations for "
                             f"{most} parameters, got {self.polish}")
         if self.prior_weight < 0 or self.box_sigmas <= 0:
             raise UserError(f"prior_weight must be >= 0 and box_sigmas > 0, got "
                             f"{self.prior_weight}, {self.box_sigmas}")
+
+
+def least_budget(stages: Sequence[Sequence[str]]) -> int:
+    """The fewest evaluations a search of ``stages`` takes: NLopt's DIRECT-L and BOBYQA need
+    ``2 k + 2`` for the largest stage's ``k`` parameters."""
+    return 2 * max(len(stage) for stage in stages) + 2
 
 
 def search_stages_of(text: str) -> dict[str, tuple]:

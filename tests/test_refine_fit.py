@@ -386,11 +386,13 @@ def test_the_width_ratio_of_a_render_to_the_photo_core():
 def test_a_yarn_far_thinner_than_the_nets_read_is_searched_thickness_first():
     """Backlit nets that read golden 2.5 times too thick put it outside their range: the fit
     says so, searches the thickness, flyaways and ply twist in turn without their prior, and
-    its render's core comes nearer the photo's width (measured here by the core widths of
-    the photo and of the two renders); a reading within the gate keeps the default search,
-    and so does a frontlit fit, whose core width follows the light."""
+    its render's core comes nearer the photo's width (the half-contrast width of the
+    benchmarks' net-free yardstick, not the fit's own width measure, on the photo and on the
+    two rendered at its pitch); a reading within the gate keeps the default search, and so
+    does a frontlit fit, whose core width follows the light."""
+    from ipm.benchmarks.photo_measures import measure_image
     from ipm.photo import Photo
-    from ipm.refine.fit import OUTSIDE_PARAMS, FitOptions, fit, search_objective, width_ratio
+    from ipm.refine.fit import OUTSIDE_PARAMS, FitOptions, fit
     from ipm.refine.search import SearchOptions, search_stages_of
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
@@ -406,9 +408,13 @@ def test_a_yarn_far_thinner_than_the_nets_read_is_searched_thickness_first():
     stages = search_stages_of(OUTSIDE_PARAMS)
     assert result.options.search.stages == (stages["params"], *stages["later"])
     assert result.sigma is None and result.options.search.polish > 0
-    objective, small = search_objective(shot, renderer, options)
-    before = width_ratio(objective, result.neural, small)
-    after = width_ratio(objective, result.refined, small)
+
+    def core(linear):
+        return measure_image(linear_to_srgb(linear).mean(axis=2), True)["core_diameter_px"]
+
+    photo_core = core(renderer.render(truth, 5, 0.25, 8))
+    before, after = (core(renderer.render(p, 5, 0.25, 8)) / photo_core
+                     for p in (result.neural, result.refined))
     assert before > 2 and abs(np.log(after)) < 0.75 * abs(np.log(before)), (before, after)
     quick = replace_budget(options, 4)
     kept = fit(shot, truth, renderer, quick, sigma=sigma)

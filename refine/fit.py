@@ -62,10 +62,9 @@ COUNT_WIDTH_FACTOR = 1.5
 #: The search of a yarn outside the nets' range (``outside`` of :class:`FitOptions`): its
 #: thickness, then its flyaways, then the ply twist, each stage from the best of the one
 #: before, a local polish of each stage of several parameters, and no prior from the nets,
-#: whose reading of such a yarn is off their training data; the fibers per ply follow the
-#: plies' cross-section (``keep_fill``, :func:`ipm.refine.search.same_fill`).  The recipe
-#: that fitted the 24 real backlit photos (docs/real-photos-count-staged), whose yarns are
-#: thinner than any the nets know.
+#: whose reading of such a yarn is off their training data.  The recipe that fitted the 24
+#: real backlit photos (docs/real-photos-count-staged), whose yarns are thinner than any the
+#: nets know.
 OUTSIDE_PARAMS = "R_ply,r_x,r_y;g,l_hair,l_loop,d_mean;alpha_ply"
 OUTSIDE_POLISH = 16
 #: The setups whose photos' core width tells a yarn outside the nets' range.  Not frontlit:
@@ -124,12 +123,12 @@ class FitOptions:
 
     def outside_search(self) -> FitOptions:
         """These options with the search of a yarn outside the nets' range
-        (:data:`OUTSIDE_PARAMS` with ``keep_fill``; ``search``'s algorithm, seeds and
-        budget, raised to the least its four-parameter stage takes)."""
+        (:data:`OUTSIDE_PARAMS`; ``search``'s algorithm, seeds and budget, raised to the
+        least its four-parameter stage takes)."""
         stages = search_stages_of(OUTSIDE_PARAMS)
         least = least_budget((stages["params"], *stages["later"]))
         search = replace(self.search, **stages, budget=max(self.search.budget, least),
-                         polish=max(self.search.polish, OUTSIDE_POLISH), keep_fill=True)
+                         polish=max(self.search.polish, OUTSIDE_POLISH))
         return replace(self, search=search, outside=False)
 
     def count_groups(self, setup: str) -> tuple[str, ...]:
@@ -370,10 +369,9 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         ratio = width_ratio(objective, neural, small)
         if not within_gate(ratio):
             warnings.append(f"the nets' yarn renders {ratio:.2g} times as wide as the photo's "
-                            "core: the yarn is outside the nets' range, so its thickness "
-                            "(the fibers per ply following the plies' cross-section), "
+                            "core: the yarn is outside the nets' range, so its thickness, "
                             "flyaways and ply twist are searched in turn without their "
-                            f"prior ('{OUTSIDE_PARAMS}')")
+                            f"prior (--params '{OUTSIDE_PARAMS}' --no-prior)")
             options, sigma = options.outside_search(), None
             objective = objective_of(options)
     if seen:

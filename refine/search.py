@@ -99,9 +99,7 @@ class SearchOptions:
     of different photos landed on the same grid points (docs/real-photos-staged).  In one
     parameter its cells are already a few hundredths of the box, and polishing `alpha_ply`
     followed one fiber seed's side minima of the stripe loss instead
-    (docs/real-photos-polish-every-stage against docs/real-photos-staged).  keep_fill: a
-    stage that moves the ply radii ``r_x``, ``r_y`` but not ``m`` scales ``m`` with them
-    (:func:`same_fill`)."""
+    (docs/real-photos-polish-every-stage against docs/real-photos-staged)."""
 
     params: tuple[str, ...] = ("alpha_ply",)
     algorithm: str = "GN_DIRECT_L"
@@ -115,7 +113,6 @@ class SearchOptions:
     box_sigmas: float = 3.0
     later: tuple[tuple[str, ...], ...] = ()
     polish: int = 0
-    keep_fill: bool = False
 
     @property
     def stages(self) -> tuple[tuple[str, ...], ...]:
@@ -227,17 +224,6 @@ def seed_noise(losses: Sequence[float]) -> float:
     return max(spread, 1e-3 * abs(float(np.mean(losses))), 1e-12)
 
 
-def same_fill(p: YarnParams, start: YarnParams) -> YarnParams:
-    """``p`` with the fibers per ply ``m`` scaled with the ply's cross-section ``r_x r_y``
-    from ``start``'s, so that the plies' packing fraction ``m t_x t_y / (r_x r_y)`` stays
-    ``start``'s (within ``m``'s interval).  Why: a search that shrinks the plies of a
-    yarn the nets read too thick would otherwise pack the nets' fiber count into a fraction
-    of the area, denser than any yarn of the guided prior, and render an opaque core whose
-    ply stripes no longer show (docs/real-photos-default: such fits kept twice the
-    photo's ply period)."""
-    return p.replace(m=clipped("m", start.m * p.r_x * p.r_y / (start.r_x * start.r_y)))
-
-
 def same_period(p: YarnParams, n: int) -> YarnParams | None:
     """``p`` with ``n`` plies and the ply pitch scaled to keep the ply-stripe period
     ``alpha_ply / n`` the image shows; None if that pitch leaves its interval."""
@@ -309,13 +295,10 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     def posterior(loss: float, p: YarnParams) -> float:
         return loss if sigma is None else in_noise_units(loss, p)
 
-    fill_follows = opts.keep_fill and bool({"r_x", "r_y"} & set(names)) and "m" not in names
-
     def to_params(u: np.ndarray) -> YarnParams:
         vals = lo + np.clip(u, 0, 1) * span
         vals = np.where(logs, np.exp(vals), vals)
-        p = start.replace(**{k: clipped(k, v) for k, v in zip(names, vals, strict=True)})
-        return same_fill(p, start) if fill_follows else p
+        return start.replace(**{k: clipped(k, v) for k, v in zip(names, vals, strict=True)})
 
     def f(u: np.ndarray, grad: np.ndarray) -> float:
         p = to_params(u)

@@ -1,7 +1,5 @@
 """The NLopt search machinery on an analytic objective (no renderer needed)."""
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
@@ -383,40 +381,3 @@ def test_polish_reaches_a_minimum_between_the_global_searchs_grid_points():
     assert one.evaluations <= 30  # one parameter: DIRECT-L's cells are fine already
     with pytest.raises(UserError, match="polish"):
         SearchOptions(params=NAMES, polish=3)
-
-
-def ply_packing(params, seed=1):
-    """The share of ply 0's cross-section its core fibers cover, measured on the generated
-    fibers: each fiber's point nearest the yarn's middle (z = 0) gives its place in the
-    cross-section; the ply's area is that of the uniform ellipse with the points' spread
-    (4 pi sqrt(det cov)); the fibers' own area pi t_x t_y each."""
-    from ipm.generator import generate
-
-    fibers = generate(params, seed, length=2.0)
-    places = []
-    for f in np.flatnonzero((fibers.kind == 0) & (fibers.ply == 0)):
-        pts = fibers.fiber(int(f))
-        places.append(pts[np.argmin(np.abs(pts[:, 2])), :2])
-    places = np.array(places)
-    area = 4 * np.pi * np.sqrt(np.linalg.det(np.cov(places.T)))
-    return len(places) * np.pi * params.t_x * params.t_y / area
-
-
-def test_a_search_that_shrinks_the_plies_keeps_their_packing_with_keep_fill():
-    """With ``keep_fill`` a stage of the ply radii scales the fibers per ply with the ply's
-    cross-section, so the generated plies stay as densely packed as the start's; without,
-    the same fiber count packed into the shrunk plies is several times denser."""
-    start = TRUTH.replace(m=120)
-    small = {"r_x": 0.5 * start.r_x, "r_y": 0.5 * start.r_y}
-
-    def loss(p, seed):  # lowest at plies half as wide
-        return sum((getattr(p, k) - v) ** 2 for k, v in small.items()) + 1e-6 * (seed % 3)
-
-    opts = SearchOptions(params=("r_x", "r_y"), budget=40, width=0.5)
-    kept = search(loss, start, replace(opts, keep_fill=True)).best
-    packed = search(loss, start, opts).best
-    assert kept.r_x < 0.6 * start.r_x and packed.r_x < 0.6 * start.r_x
-    assert packed.m == start.m and kept.m < 0.4 * start.m
-    ratio_kept, ratio_packed = (ply_packing(p) / ply_packing(start) for p in (kept, packed))
-    assert 0.75 < ratio_kept < 1.33, ratio_kept
-    assert ratio_packed > 3, ratio_packed

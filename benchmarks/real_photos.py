@@ -11,7 +11,9 @@ photo and its render are measured alike.
   (:func:`ipm.benchmarks.photo_measures.hairiness`), the render's over the photo's.
 
 Writes ``index.md`` (the table and the medians), ``fits.jsonl`` (resumable, as ``ipm
-compare``), ``renders/`` and ``contact_sheet.png`` (photo | refined render, every photo).
+compare``; ``settings.json`` holds the run's flags, and a folder of other flags is refused
+rather than resumed), ``renders/`` and ``contact_sheet.png`` (photo | refined render, every
+photo).  A change of the code is not seen: refit into a new folder after one.
 
     python -m ipm.benchmarks.real_photos --photos ../shared/real-yarns --pixel-size 0.0021 \\
         --out docs/real-photos
@@ -101,6 +103,8 @@ def main() -> None:
 
     from PIL import Image
 
+    from ipm.errors import UserError
+    from ipm.io import check_same_settings, write_text
     from ipm.nets.ensemble import Ensemble
     from ipm.params import YarnParams
     from ipm.refine.compare import fit_all
@@ -118,6 +122,15 @@ def main() -> None:
     options = FitOptions(search=search, ply_counts=args.ply_counts, match_size=args.match_size,
                          outside=args.params is None and not args.no_prior)
     args.out.mkdir(parents=True, exist_ok=True)
+    settings = {"photos": str(args.photos), "pixel_size_mm": args.pixel_size,
+                "models": str(args.models or "shipped"), "budget": args.budget,
+                "params": args.params, "polish": args.polish, "ply_counts": args.ply_counts,
+                "prior": not args.no_prior, "match_size": args.match_size}
+    try:  # before resuming the fits in the folder
+        check_same_settings(args.out / "settings.json", settings, "fits")
+    except UserError as e:
+        raise SystemExit(f"error: {e}") from None
+    write_text(args.out / "settings.json", json.dumps(settings, indent=2) + "\n")
     rows = fit_all(args.out / "fits.jsonl", records, lambda i, photo: ensemble.predict(photo),
                    options, None if args.no_prior else ensemble.sigma(args.pixel_size),
                    progress=lambda done, total: print(f"fits {done}/{total}", flush=True),

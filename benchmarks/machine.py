@@ -9,11 +9,16 @@ from importlib import metadata
 
 
 def git_commit() -> str:
+    """The checked-out commit, marked if tracked code (``*.py``, ``*.sh``) differs from it:
+    a report made from changes not yet committed says so."""
     try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
                               text=True, check=True).stdout.strip()
+        changed = subprocess.run(["git", "diff", "--quiet", "HEAD", "--", "*.py", "*.sh"],
+                                 capture_output=True).returncode != 0
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
+    return f"{head} with uncommitted code changes" if changed else head
 
 
 def cpu_model() -> str:

@@ -13,6 +13,15 @@ PIXEL_SIZE_MM = 0.01
 FRAME_WIDTH_MM = FRAME_WIDTH_PX * PIXEL_SIZE_MM
 FRAME_HEIGHT_MM = FRAME_HEIGHT_PX * PIXEL_SIZE_MM
 
-#: Length of a generated yarn along its axis: the frame's width plus a margin on each side,
-#: so fiber ends and small rotations of the yarn (photometric variation) stay out of view.
-YARN_LENGTH_MM = FRAME_WIDTH_MM + 6.0
+#: Margin of a generated yarn beyond the view it is rendered in, both sides together: fiber
+#: ends and small rotations of the yarn (photometric variation) stay out of view.
+YARN_MARGIN_MM = 6.0
+#: Length of a generated yarn along its axis: the frame's width plus the margin.
+YARN_LENGTH_MM = FRAME_WIDTH_MM + YARN_MARGIN_MM
+
+
+def view_yarn_length(width_mm: float, height_mm: float) -> float:
+    """The length of yarn a view of ``width_mm`` x ``height_mm`` needs: its diagonal (the
+    yarn at any tilt) plus :data:`YARN_MARGIN_MM`, at most :data:`YARN_LENGTH_MM`.  A search
+    over a microscope's 3 mm field generates a third of the yarn frame's fibers."""
+    return min(YARN_LENGTH_MM, (width_mm ** 2 + height_mm ** 2) ** 0.5 + YARN_MARGIN_MM)

@@ -67,6 +67,10 @@ COUNT_WIDTH_FACTOR = 1.5
 #: nets know.
 OUTSIDE_PARAMS = "R_ply,r_x,r_y;g,l_hair,l_loop,d_mean;alpha_ply"
 OUTSIDE_POLISH = 16
+#: Fiber seeds per evaluation of that search: one, at half the renders of two.  Its stages
+#: re-score their best candidates on more seeds, and on the real photos one seed kept the
+#: targets that two met (docs/real-photos-one-seed against docs/real-photos-default).
+OUTSIDE_SEEDS_PER_EVAL = 1
 #: The setups whose photos' core width tells a yarn outside the nets' range.  Not frontlit:
 #: there the core's half-contrast width follows the light, and ipm's own held-out renders,
 #: whose thickness the nets read well, reached the gate too (count_width.md).
@@ -124,12 +128,13 @@ class FitOptions:
     def outside_search(self) -> FitOptions:
         """These options with the search of a yarn outside the nets' range
         (:data:`OUTSIDE_PARAMS`; ``search``'s algorithm, seeds and budget, raised to the
-        least its four-parameter stage takes)."""
+        least its four-parameter stage takes; :data:`OUTSIDE_SEEDS_PER_EVAL`)."""
         stages = search_stages_of(OUTSIDE_PARAMS)
         least = least_budget((stages["params"], *stages["later"]))
         search = replace(self.search, **stages, budget=max(self.search.budget, least),
                          polish=max(self.search.polish, OUTSIDE_POLISH))
-        return replace(self, search=search, outside=False)
+        return replace(self, search=search, outside=False,
+                       seeds_per_eval=min(self.seeds_per_eval, OUTSIDE_SEEDS_PER_EVAL))
 
     def count_groups(self, setup: str) -> tuple[str, ...]:
         """The groups a fit of a photo of ``setup`` chooses its ply count by (``choose_count``;

@@ -16,7 +16,7 @@ from functools import partial
 import numpy as np
 import torch
 
-from ipm.frame import PIXEL_SIZE_MM
+from ipm.frame import PIXEL_SIZE_MM, YARN_LENGTH_MM, view_yarn_length
 from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb
 from ipm.prior import FLYAWAY_RANGES
@@ -72,6 +72,10 @@ COUNT_GROUPS = {"frontlit": (), "backlit": ("silhouette",)}
 STATS_KEPT = 64
 #: The weight of the ``flyaways`` group in a search that moves flyaway parameters.
 FLYAWAY_WEIGHT = 1.0
+#: The fewest fiber seeds a stage moving flyaway parameters averages per evaluation: its
+#: statistic counts the few dozen flyaways of a view, the noisiest group of the loss
+#: (:meth:`RenderObjective.for_stage`; docs/real-photos-one-seed).
+FLYAWAY_SEEDS = 2
 
 
 def search_weights(searched: Iterable[str]) -> dict[str, float]:
@@ -151,7 +155,8 @@ class RenderObjective:
     per evaluation (:class:`Detail`).  ``evaluations`` counts renders of the main view.
     The statistics of the last :data:`STATS_KEPT` (params, seed) pairs are kept: a fit
     scores its start under several weightings (the ply count's choice, the search's start,
-    the whole-loss rule), and the render of one pair is always the same.
+    the whole-loss rule), and the render of one pair is always the same.  A ``frame``
+    renders only the yarn its view shows (:func:`ipm.frame.view_yarn_length`).
     """
 
     def __init__(self, renderer, photo: np.ndarray, scale: float, spp: int,
@@ -171,6 +176,9 @@ class RenderObjective:
         self.setup = renderer.options.setup
         self.readings = readings
         self.pixel_size_mm = pixel_size_mm(scale) if frame is None else frame.pixel_size_mm
+        self.length = (YARN_LENGTH_MM if frame is None else
+                       view_yarn_length(frame.width * frame.pixel_size_mm,
+                                        frame.height * frame.pixel_size_mm))
         self.detail = detail
         self._kept: OrderedDict[tuple, dict[str, torch.Tensor]] = OrderedDict()
         self.photo_stats = self.statistics(centre_crop(photo, *self.size))
@@ -208,26 +216,28 @@ class RenderObjective:
     def render(self, params: YarnParams, seed: int) -> np.ndarray:
         """The sRGB render (H, W, 3) the objective compares, cut to the photo's extent."""
         img = self.renderer.render(params, seed, self.scale, self.spp, self.render_seed,
-                                   self.capture, self.frame)
+                                   self.capture, self.frame, self.length)
         self.evaluations += 1
         return centre_crop(linear_to_srgb(img), *self.size)
 
     def loss_of_image(self, img: np.ndarray) -> float:
         return float(stat_distance(self.statistics(img), self.photo_stats, self.weights)[0])
 
-    def _mean_stats(self, params: YarnParams, seed: int) -> dict[str, torch.Tensor]:
-        if (params, seed) in self._kept:
-            return self._kept[params, seed]
+    def _mean_stats(self, params: YarnParams, seed: int, seeds: int | None = None
+                    ) -> dict[str, torch.Tensor]:
+        seeds = seeds or self.seeds_per_eval
+        if (params, seed, seeds) in self._kept:
+            return self._kept[params, seed, seeds]
         stats = []
-        for k in range(self.seeds_per_eval):
+        for k in range(seeds):
             stats.append(self.statistics(self.render(params, seed + 1000 * k)))
             if self.detail is not None:
                 stats[-1] |= self.detail_statistics(self.render_detail(params, seed + 1000 * k))
-        self._kept[params, seed] = {g: torch.stack([s[g] for s in stats]).mean(dim=0)
-                                    for g in stats[0]}
+        self._kept[params, seed, seeds] = {g: torch.stack([s[g] for s in stats]).mean(dim=0)
+                                           for g in stats[0]}
         if len(self._kept) > STATS_KEPT:
             self._kept.popitem(last=False)
-        return self._kept[params, seed]
+        return self._kept[params, seed, seeds]
 
     def group_distances(self, params: YarnParams, seed: int) -> dict[str, float]:
         """Each statistics group's distance to the photo's (unweighted), of the statistics
@@ -236,8 +246,11 @@ class RenderObjective:
         return {g: float(v[0]) for g, v in d.items()}
 
     def __call__(self, params: YarnParams, seed: int,
-                 weights: dict[str, float] | None = None) -> float:
-        return float(stat_distance(self._mean_stats(params, seed), self.photo_stats,
+                 weights: dict[str, float] | None = None, seeds: int | None = None) -> float:
+        """The loss of ``params`` rendered with fiber seed ``seed`` (the statistics' mean over
+        ``seeds`` fiber seeds, default ``seeds_per_eval``), the groups weighted by
+        ``weights`` (default the objective's)."""
+        return float(stat_distance(self._mean_stats(params, seed, seeds), self.photo_stats,
                                    self.weights if weights is None else weights)[0])
 
     def for_stage(self, names: Sequence[str], earlier: Sequence[str] = ()
@@ -246,7 +259,8 @@ class RenderObjective:
         ``earlier`` (:func:`ipm.refine.search.search_stages`), scored by the groups that see
         those parameters:
 
-        * flyaway parameters alone: the ``flyaways`` group alone.  Flyaways that cross the
+        * flyaway parameters alone: the ``flyaways`` group alone, over at least
+          :data:`FLYAWAY_SEEDS` fiber seeds.  Flyaways that cross the
           core band move the period and stripes groups too, and on a real photo a grid of
           flyaway amounts and lengths moved those more than the flyaway group: scored by
           every group, that stage would follow the stripes;
@@ -264,7 +278,11 @@ class RenderObjective:
           against docs/real-photos-contour-pitch);
         * any other: the objective itself."""
         weights = self.stage_weights(names, earlier)
-        return self if weights is None else partial(self, weights=weights)
+        if weights is None:
+            return self
+        flyaways = all(k in FLYAWAY_RANGES for k in names)
+        return partial(self, weights=weights,
+                       seeds=max(self.seeds_per_eval, FLYAWAY_SEEDS) if flyaways else None)
 
     def stage_weights(self, names: Sequence[str], earlier: Sequence[str] = ()
                       ) -> dict[str, float] | None:

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ipm.fibers import FiberSet
+from ipm.frame import YARN_LENGTH_MM
 from ipm.generator import generate
 from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb, srgb_to_linear, write_png
@@ -156,14 +157,14 @@ class Renderer:
 
     def render(self, params: YarnParams, seed: int, scale: float, spp: int,
                render_seed: int = 0, photometric: Photometric = NOMINAL,
-               frame: Frame | None = None) -> np.ndarray:
-        """Linear RGB image (H, W, 3) float32 of the yarn ``generate(params, seed)``, with
-        the capture variation ``photometric`` applied (geometry and image), in the yarn
+               frame: Frame | None = None, length: float = YARN_LENGTH_MM) -> np.ndarray:
+        """Linear RGB image (H, W, 3) float32 of the yarn ``generate(params, seed, length)``,
+        with the capture variation ``photometric`` applied (geometry and image), in the yarn
         frame at ``scale`` or in ``frame`` (a photo's smaller field of view at its own
         pitch); a backlit photo is grey (a monochrome sensor: the channels' mean in all
         three)."""
         to_world = yarn_to_world(photometric.shift_mm, photometric.rotation_deg)
-        image = self.render_fibers(generate(params, seed), params.color, scale, spp,
+        image = self.render_fibers(generate(params, seed, length), params.color, scale, spp,
                                    render_seed, to_world, frame, look=photometric)
         if photometric != NOMINAL:
             pitch = frame.pixel_size_mm if frame is not None else pixel_size_mm(scale)

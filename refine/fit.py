@@ -68,8 +68,9 @@ COUNT_WIDTH_FACTOR = 1.5
 OUTSIDE_PARAMS = "R_ply,r_x,r_y;g,l_hair,l_loop,d_mean;alpha_ply"
 OUTSIDE_POLISH = 16
 #: Fiber seeds per evaluation of that search: one, at half the renders of two.  Its stages
-#: re-score their best candidates on more seeds, and on the real photos one seed kept the
-#: targets that two met (docs/real-photos-one-seed against docs/real-photos-default).
+#: re-score their best candidates on more seeds, and on the real photos one seed met the
+#: targets as two did, within the spread between runs (docs/real-photos-default against
+#: docs/real-photos-two-seeds and docs/real-photos-fast; benchmarks/README.md).
 OUTSIDE_SEEDS_PER_EVAL = 1
 #: The setups whose photos' core width tells a yarn outside the nets' range.  Not frontlit:
 #: there the core's half-contrast width follows the light, and ipm's own held-out renders,

@@ -72,10 +72,6 @@ COUNT_GROUPS = {"frontlit": (), "backlit": ("silhouette",)}
 STATS_KEPT = 64
 #: The weight of the ``flyaways`` group in a search that moves flyaway parameters.
 FLYAWAY_WEIGHT = 1.0
-#: The fewest fiber seeds a stage moving flyaway parameters averages per evaluation: its
-#: statistic counts the few dozen flyaways of a view, the noisiest group of the loss
-#: (:meth:`RenderObjective.for_stage`; docs/real-photos-one-seed).
-FLYAWAY_SEEDS = 2
 
 
 def search_weights(searched: Iterable[str]) -> dict[str, float]:
@@ -223,21 +219,19 @@ class RenderObjective:
     def loss_of_image(self, img: np.ndarray) -> float:
         return float(stat_distance(self.statistics(img), self.photo_stats, self.weights)[0])
 
-    def _mean_stats(self, params: YarnParams, seed: int, seeds: int | None = None
-                    ) -> dict[str, torch.Tensor]:
-        seeds = seeds or self.seeds_per_eval
-        if (params, seed, seeds) in self._kept:
-            return self._kept[params, seed, seeds]
+    def _mean_stats(self, params: YarnParams, seed: int) -> dict[str, torch.Tensor]:
+        if (params, seed) in self._kept:
+            return self._kept[params, seed]
         stats = []
-        for k in range(seeds):
+        for k in range(self.seeds_per_eval):
             stats.append(self.statistics(self.render(params, seed + 1000 * k)))
             if self.detail is not None:
                 stats[-1] |= self.detail_statistics(self.render_detail(params, seed + 1000 * k))
-        self._kept[params, seed, seeds] = {g: torch.stack([s[g] for s in stats]).mean(dim=0)
-                                           for g in stats[0]}
+        self._kept[params, seed] = {g: torch.stack([s[g] for s in stats]).mean(dim=0)
+                                    for g in stats[0]}
         if len(self._kept) > STATS_KEPT:
             self._kept.popitem(last=False)
-        return self._kept[params, seed, seeds]
+        return self._kept[params, seed]
 
     def group_distances(self, params: YarnParams, seed: int) -> dict[str, float]:
         """Each statistics group's distance to the photo's (unweighted), of the statistics
@@ -246,11 +240,8 @@ class RenderObjective:
         return {g: float(v[0]) for g, v in d.items()}
 
     def __call__(self, params: YarnParams, seed: int,
-                 weights: dict[str, float] | None = None, seeds: int | None = None) -> float:
-        """The loss of ``params`` rendered with fiber seed ``seed`` (the statistics' mean over
-        ``seeds`` fiber seeds, default ``seeds_per_eval``), the groups weighted by
-        ``weights`` (default the objective's)."""
-        return float(stat_distance(self._mean_stats(params, seed, seeds), self.photo_stats,
+                 weights: dict[str, float] | None = None) -> float:
+        return float(stat_distance(self._mean_stats(params, seed), self.photo_stats,
                                    self.weights if weights is None else weights)[0])
 
     def for_stage(self, names: Sequence[str], earlier: Sequence[str] = ()
@@ -259,8 +250,7 @@ class RenderObjective:
         ``earlier`` (:func:`ipm.refine.search.search_stages`), scored by the groups that see
         those parameters:
 
-        * flyaway parameters alone: the ``flyaways`` group alone, over at least
-          :data:`FLYAWAY_SEEDS` fiber seeds.  Flyaways that cross the
+        * flyaway parameters alone: the ``flyaways`` group alone.  Flyaways that cross the
           core band move the period and stripes groups too, and on a real photo a grid of
           flyaway amounts and lengths moved those more than the flyaway group: scored by
           every group, that stage would follow the stripes;
@@ -278,11 +268,7 @@ class RenderObjective:
           against docs/real-photos-contour-pitch);
         * any other: the objective itself."""
         weights = self.stage_weights(names, earlier)
-        if weights is None:
-            return self
-        flyaways = all(k in FLYAWAY_RANGES for k in names)
-        return partial(self, weights=weights,
-                       seeds=max(self.seeds_per_eval, FLYAWAY_SEEDS) if flyaways else None)
+        return self if weights is None else partial(self, weights=weights)
 
     def stage_weights(self, names: Sequence[str], earlier: Sequence[str] = ()
                       ) -> dict[str, float] | None:

@@ -249,6 +249,34 @@ def test_a_small_fine_photo_is_searched_over_its_own_view_at_a_finer_pitch():
     assert np.corrcoef(part.mean(axis=1), expected)[0, 1] > 0.95
 
 
+def test_a_views_search_renders_only_the_yarn_its_view_needs_across_the_whole_view():
+    """The search over a microscope's 3 x 2.3 mm view generates a yarn of the view's diagonal
+    plus the margin, not the yarn frame's 26 mm, and at a tilt its core still crosses the
+    view from edge to edge: the outer tenths of the columns are as dark as the middle."""
+    from ipm.frame import YARN_LENGTH_MM, YARN_MARGIN_MM, view_yarn_length
+    from ipm.photo import Photo
+    from ipm.refine.fit import search_view
+    from ipm.refine.objective import RenderObjective
+    from ipm.render.renderer import Renderer
+    from ipm.render.scene import setup_options
+
+    assert view_yarn_length(3.0, 4.0) == pytest.approx(5.0 + YARN_MARGIN_MM)
+    assert view_yarn_length(40.0, 6.0) == YARN_LENGTH_MM
+    photo = Photo(np.full((1080, 1440, 3), 0.5, np.float32), 0.0021)
+    scale, view = search_view(photo, 0.2)
+    renderer = Renderer(options=setup_options("backlit"))  # a dark yarn on a light panel
+    yarn = preset("golden").replace(R_ply=0.15, r_x=0.12, r_y=0.1)
+    for tilt in (0.0, 20.0):
+        objective = RenderObjective(renderer, photo.at_pitch(scale), scale, 4, frame=view,
+                                    tilt_deg=tilt)
+        assert objective.length < YARN_LENGTH_MM / 2
+        darkness = 1 - objective.render(yarn, 0).mean(axis=2)
+        tenth = view.width // 10
+        middle = darkness[:, 4 * tenth:6 * tenth].sum(axis=0).mean()
+        for edge in (darkness[:, :tenth], darkness[:, -tenth:]):
+            assert edge.sum(axis=0).mean() > 0.7 * middle
+
+
 class _BandObjective:
     """A stand-in for the render of a search: a dark band as wide as a yarn's core,
     ``2 (R_ply + r_y)`` at ``pitch`` mm per pixel, drawn here, with a thin dark line across

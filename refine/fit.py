@@ -62,9 +62,10 @@ COUNT_WIDTH_FACTOR = 1.5
 #: The search of a yarn outside the nets' range (``outside`` of :class:`FitOptions`): its
 #: thickness, then its flyaways, then the ply twist, each stage from the best of the one
 #: before, a local polish of each stage of several parameters, and no prior from the nets,
-#: whose reading of such a yarn is off their training data.  The recipe that fitted the 24
-#: real backlit photos (docs/real-photos-count-staged), whose yarns are thinner than any the
-#: nets know.
+#: whose reading of such a yarn is off their training data; the fibers per ply follow the
+#: plies' width (``keep_cover``, :func:`ipm.refine.search.same_cover`).  The recipe that
+#: fitted the 24 real backlit photos (docs/real-photos-default), whose yarns are thinner
+#: than any the nets know.
 OUTSIDE_PARAMS = "R_ply,r_x,r_y;g,l_hair,l_loop,d_mean;alpha_ply"
 OUTSIDE_POLISH = 16
 #: Fiber seeds per evaluation of that search: one, at half the renders of two.  Its stages
@@ -128,12 +129,13 @@ class FitOptions:
 
     def outside_search(self) -> FitOptions:
         """These options with the search of a yarn outside the nets' range
-        (:data:`OUTSIDE_PARAMS`; ``search``'s algorithm, seeds and budget, raised to the
-        least its four-parameter stage takes; :data:`OUTSIDE_SEEDS_PER_EVAL`)."""
+        (:data:`OUTSIDE_PARAMS` with ``keep_cover``; ``search``'s algorithm, seeds and
+        budget, raised to the least its four-parameter stage takes;
+        :data:`OUTSIDE_SEEDS_PER_EVAL`)."""
         stages = search_stages_of(OUTSIDE_PARAMS)
         least = least_budget((stages["params"], *stages["later"]))
         search = replace(self.search, **stages, budget=max(self.search.budget, least),
-                         polish=max(self.search.polish, OUTSIDE_POLISH))
+                         polish=max(self.search.polish, OUTSIDE_POLISH), keep_cover=True)
         return replace(self, search=search, outside=False,
                        seeds_per_eval=min(self.seeds_per_eval, OUTSIDE_SEEDS_PER_EVAL))
 
@@ -375,9 +377,10 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         ratio = width_ratio(objective, neural, small)
         if not within_gate(ratio):
             warnings.append(f"the nets' yarn renders {ratio:.2g} times as wide as the photo's "
-                            "core: the yarn is outside the nets' range, so its thickness, "
+                            "core: the yarn is outside the nets' range, so its thickness "
+                            "(the fibers per ply following the plies' width), "
                             "flyaways and ply twist are searched in turn without their "
-                            f"prior (--params '{OUTSIDE_PARAMS}' --no-prior)")
+                            f"prior (stages '{OUTSIDE_PARAMS}')")
             options, sigma = options.outside_search(), None
             objective = objective_of(options)
     if seen:

@@ -99,7 +99,9 @@ class SearchOptions:
     of different photos landed on the same grid points (docs/real-photos-staged).  In one
     parameter its cells are already a few hundredths of the box, and polishing `alpha_ply`
     followed one fiber seed's side minima of the stripe loss instead
-    (docs/real-photos-polish-every-stage against docs/real-photos-staged)."""
+    (docs/real-photos-polish-every-stage against docs/real-photos-staged).  keep_cover: a
+    stage that moves the ply radii ``r_x``, ``r_y`` but not ``m`` scales ``m`` with them
+    (:func:`same_cover`)."""
 
     params: tuple[str, ...] = ("alpha_ply",)
     algorithm: str = "GN_DIRECT_L"
@@ -113,6 +115,7 @@ class SearchOptions:
     box_sigmas: float = 3.0
     later: tuple[tuple[str, ...], ...] = ()
     polish: int = 0
+    keep_cover: bool = False
 
     @property
     def stages(self) -> tuple[tuple[str, ...], ...]:
@@ -224,6 +227,20 @@ def seed_noise(losses: Sequence[float]) -> float:
     return max(spread, 1e-3 * abs(float(np.mean(losses))), 1e-12)
 
 
+def same_cover(p: YarnParams, start: YarnParams) -> YarnParams:
+    """``p`` with the fibers per ply ``m`` scaled with the ply's mean radius
+    ``sqrt(r_x r_y)`` from ``start``'s (within ``m``'s interval), so that the share of a
+    ply's side view its fibers cover, about ``m t / r``, stays ``start``'s: a backlit core
+    then stays as dark as in the render of ``start``.  Why: a search that narrows the plies
+    of a yarn the nets read too thick would otherwise pack their fiber count into plies a
+    third as wide and render an opaque black core whose ply stripes no longer show (most
+    real-photo fits that missed the stripe period, docs/real-photos-two-seeds); keeping the
+    fibers per area instead (``m`` with ``r_x r_y``) rendered see-through bundles whose core
+    read too wide (docs/real-photos-keep-fill)."""
+    scale = np.sqrt(p.r_x * p.r_y / (start.r_x * start.r_y))
+    return p.replace(m=clipped("m", start.m * scale))
+
+
 def same_period(p: YarnParams, n: int) -> YarnParams | None:
     """``p`` with ``n`` plies and the ply pitch scaled to keep the ply-stripe period
     ``alpha_ply / n`` the image shows; None if that pitch leaves its interval."""
@@ -295,10 +312,13 @@ def search(objective: Objective, start: YarnParams, opts: SearchOptions = Search
     def posterior(loss: float, p: YarnParams) -> float:
         return loss if sigma is None else in_noise_units(loss, p)
 
+    cover_kept = opts.keep_cover and bool({"r_x", "r_y"} & set(names)) and "m" not in names
+
     def to_params(u: np.ndarray) -> YarnParams:
         vals = lo + np.clip(u, 0, 1) * span
         vals = np.where(logs, np.exp(vals), vals)
-        return start.replace(**{k: clipped(k, v) for k, v in zip(names, vals, strict=True)})
+        p = start.replace(**{k: clipped(k, v) for k, v in zip(names, vals, strict=True)})
+        return same_cover(p, start) if cover_kept else p
 
     def f(u: np.ndarray, grad: np.ndarray) -> float:
         p = to_params(u)

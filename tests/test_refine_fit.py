@@ -436,6 +436,7 @@ def test_a_yarn_far_thinner_than_the_nets_read_is_searched_thickness_first():
     stages = search_stages_of(OUTSIDE_PARAMS)
     assert result.options.search.stages == (stages["params"], *stages["later"])
     assert result.sigma is None and result.options.search.polish > 0
+    assert result.options.search.keep_cover
 
     def core(linear):
         return measure_image(linear_to_srgb(linear).mean(axis=2), True)["core_diameter_px"]

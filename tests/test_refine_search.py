@@ -1,5 +1,7 @@
 """The NLopt search machinery on an analytic objective (no renderer needed)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -381,3 +383,46 @@ def test_polish_reaches_a_minimum_between_the_global_searchs_grid_points():
     assert one.evaluations <= 30  # one parameter: DIRECT-L's cells are fine already
     with pytest.raises(UserError, match="polish"):
         SearchOptions(params=NAMES, polish=3)
+
+
+def side_cover(params, seeds=(1, 2, 3)):
+    """The share of a side view of ply 0 its core fibers cover, measured on the generated
+    fibers: at nine cross-sections along the yarn, each fiber's point nearest the section
+    casts a shadow ``2 t_x`` wide on the x axis, and the union of the shadows is taken over
+    the span they reach."""
+    from ipm.generator import generate
+
+    shares = []
+    for seed in seeds:
+        fibers = generate(params, seed, length=2.0)
+        ply = [fibers.fiber(int(f)) for f in np.flatnonzero((fibers.kind == 0)
+                                                              & (fibers.ply == 0))]
+        for z in np.linspace(-0.8, 0.8, 9):
+            x = np.sort([pts[np.argmin(np.abs(pts[:, 2] - z)), 0] for pts in ply])
+            lo, hi = x - params.t_x, x + params.t_x
+            reach = np.maximum.accumulate(np.concatenate([[-np.inf], hi[:-1]]))
+            shares.append(np.clip(hi - np.maximum(lo, reach), 0, None).sum()
+                          / (hi.max() - lo.min()))
+    return float(np.mean(shares))
+
+
+def test_a_search_that_narrows_the_plies_keeps_their_cover_with_keep_cover():
+    """With ``keep_cover`` a stage of the ply radii scales the fibers per ply with the
+    plies' width, so a side view of a ply stays about as covered as the start's; without,
+    the same fibers packed into plies half as wide cover far more of it (a backlit core
+    turns opaque)."""
+    start = TRUTH.replace(m=40, t_x=0.006, t_y=0.006, r_x=0.3, r_y=0.25)
+    small = {"r_x": 0.5 * start.r_x, "r_y": 0.5 * start.r_y}
+
+    def loss(p, seed):  # lowest at plies half as wide
+        return sum((getattr(p, k) - v) ** 2 for k, v in small.items()) + 1e-6 * (seed % 3)
+
+    opts = SearchOptions(params=("r_x", "r_y"), budget=40, width=0.5)
+    kept = search(loss, start, replace(opts, keep_cover=True)).best
+    packed = search(loss, start, opts).best
+    assert kept.r_x < 0.6 * start.r_x and packed.r_x < 0.6 * start.r_x
+    assert packed.m == start.m and 0.4 * start.m < kept.m < 0.65 * start.m
+    depth = {k: -np.log(1 - side_cover(p)) for k, p in (("start", start), ("kept", kept),
+                                                         ("packed", packed))}
+    assert depth["packed"] > 1.6 * depth["start"], depth
+    assert abs(np.log(depth["kept"] / depth["start"])) < 0.3, depth

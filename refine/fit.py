@@ -70,7 +70,7 @@ OUTSIDE_PARAMS = "R_ply,r_x,r_y;g,l_hair,l_loop,d_mean;alpha_ply"
 OUTSIDE_POLISH = 16
 #: Fiber seeds per evaluation of that search: one, at half the renders of two.  Its stages
 #: re-score their best candidates on more seeds, and on the real photos one seed met the
-#: targets as two did, within the spread between runs (docs/real-photos-default against
+#: targets as two did, within the spread between runs (docs/real-photos-one-seed against
 #: docs/real-photos-two-seeds and docs/real-photos-fast; benchmarks/README.md).
 OUTSIDE_SEEDS_PER_EVAL = 1
 #: The setups whose photos' core width tells a yarn outside the nets' range.  Not frontlit:

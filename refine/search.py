@@ -233,10 +233,11 @@ def same_cover(p: YarnParams, start: YarnParams) -> YarnParams:
     ply's side view its fibers cover, about ``m t / r``, stays ``start``'s: a backlit core
     then stays as dark as in the render of ``start``.  Why: a search that narrows the plies
     of a yarn the nets read too thick would otherwise pack their fiber count into plies a
-    third as wide and render an opaque black core whose ply stripes no longer show (most
-    real-photo fits that missed the stripe period, docs/real-photos-two-seeds); keeping the
-    fibers per area instead (``m`` with ``r_x r_y``) rendered see-through bundles whose core
-    read too wide (docs/real-photos-keep-fill)."""
+    third to a half as wide and render an opaque black core whose ply stripes no longer
+    show (most real-photo fits that missed the stripe period, docs/real-photos-two-seeds);
+    keeping the fibers per area instead (``m`` with ``r_x r_y``) rendered see-through
+    bundles whose core read too wide (docs/real-photos-keep-fill).  With the cover kept the
+    real-photo fits met their targets best (docs/real-photos-default)."""
     scale = np.sqrt(p.r_x * p.r_y / (start.r_x * start.r_y))
     return p.replace(m=clipped("m", start.m * scale))
 

@@ -66,7 +66,7 @@ COUNT_WIDTH_FACTOR = 1.5
 #: plies' width (``keep_cover``, :func:`ipm.refine.search.same_cover`).  The recipe that
 #: fitted the 24 real backlit photos (docs/real-photos-default), whose yarns are thinner
 #: than any the nets know.
-OUTSIDE_PARAMS = "R_ply,r_x,r_y;g,p,beta,l_hair,l_loop,d_mean;alpha_ply"
+OUTSIDE_PARAMS = "R_ply,r_x,r_y;g,l_hair,l_loop,d_mean;alpha_ply"
 OUTSIDE_POLISH = 16
 #: Fiber seeds per evaluation of that search: one, at half the renders of two.  Its stages
 #: re-score their best candidates on more seeds, and on the real photos one seed met the

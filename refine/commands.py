@@ -15,6 +15,7 @@ from ipm.progress import progress_bar
 from ipm.refine.search import (
     DEFAULT_LEARNED,
     DEFAULT_PLY_COUNTS,
+    SURE_COUNT,
     SearchOptions,
     search_stages_of,
 )
@@ -41,6 +42,8 @@ _MATCH_SIZE_HELP = ("start the search from the nets' yarn scaled (R_ply, r_x, r_
 _NETS_COUNT_HELP = ("keep the nets' ply count; by default a backlit fit whose search starts "
                     "with alpha_ply first chooses it by the core's outline and the nets' "
                     "probabilities (ipm.refine.objective.COUNT_GROUPS)")
+_SURE_COUNT_HELP = ("where a fit keeps the nets' ply count (frontlit), search alpha_ply only "
+                    "if the nets give that count at least this probability (0: always)")
 _POLISH_HELP = ("evaluations of a local search (BOBYQA) from the best of each stage of two "
                 "or more parameters, beyond the budget: a global search's budget only "
                 "samples a coarse grid there (0: none)")
@@ -94,6 +97,8 @@ def fit(
     match_size: Annotated[bool, typer.Option("--match-size", help=_MATCH_SIZE_HELP)] = False,
     nets_ply_count: Annotated[bool, typer.Option("--nets-ply-count", help=_NETS_COUNT_HELP)]
     = False,
+    sure_count: Annotated[float, typer.Option(min=0, max=1, help=_SURE_COUNT_HELP)]
+    = SURE_COUNT,
 ) -> None:
     """Infer a yarn's parameters from a photo: the neural ensemble, and with --refine a
     render-and-compare search; writes params.json (neural and refined parameters, their
@@ -107,7 +112,7 @@ def fit(
                                               budget=budget, time_s=time_limit, polish=polish),
                          ply_counts=ply_counts, learned=learned, detail=detail,
                          match_size=match_size, choose_count=not nets_ply_count,
-                         outside=params == _DEFAULT_PARAMS and prior)
+                         outside=params == _DEFAULT_PARAMS and prior, sure_count=sure_count)
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
                                          "params.json", "knit.png", "knit.json")], [photo])
     if knit is not None:
@@ -236,6 +241,8 @@ def compare(
     match_size: Annotated[bool, typer.Option("--match-size", help=_MATCH_SIZE_HELP)] = False,
     nets_ply_count: Annotated[bool, typer.Option("--nets-ply-count", help=_NETS_COUNT_HELP)]
     = False,
+    sure_count: Annotated[float, typer.Option(min=0, max=1, help=_SURE_COUNT_HELP)]
+    = SURE_COUNT,
 ) -> None:
     """Neural-only vs refined over many photos: `ipm fit --refine` on each, then a table
     (CSV and Markdown) and a figure of photo | neural | refined."""
@@ -252,7 +259,7 @@ def compare(
                          ply_counts=ply_counts,
                          learned=learned, detail=detail, match_size=match_size,
                          choose_count=not nets_ply_count,
-                         outside=params == _DEFAULT_PARAMS and prior)
+                         outside=params == _DEFAULT_PARAMS and prior, sure_count=sure_count)
     listed = cmp.photos_in(photos, pixel_size, count, setup)
     setup = listed[0].setup
     ensemble = Ensemble.load(models, setup=setup)
@@ -268,6 +275,7 @@ def compare(
     settings |= {"ply_counts": ply_counts} if ply_counts > 1 else {}  # (older: one)
     settings |= {"polish": polish} if polish else {}
     settings |= {"match_size": True} if match_size else {}
+    settings |= {"sure_count": sure_count}
     count_groups = options.count_groups(setup)
     settings |= {"count_groups": list(count_groups)} if count_groups else {}
     later = options.search.later

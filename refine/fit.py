@@ -34,6 +34,7 @@ from ipm.refine.search import (
     DEFAULT_LEARNED,
     DEFAULT_PLY_COUNTS,
     LEVEL,
+    SURE_COUNT,
     SearchOptions,
     SearchResult,
     least_budget,
@@ -102,7 +103,14 @@ class FitOptions:
     renders more than :data:`COUNT_WIDTH_FACTOR` times wider or narrower than the photo's
     core, the yarn is outside the nets' range (benchmarks/results/count_width.md): search it
     as :data:`OUTSIDE_PARAMS` says, without the nets' prior, instead of ``search`` (the CLI
-    turns this off when the user chooses the search, ``--params`` or ``--no-prior``)."""
+    turns this off when the user chooses the search, ``--params`` or ``--no-prior``).
+    sure_count: a fit that keeps the nets' ply count (a setup without a choice of the
+    count, frontlit) searches ``alpha_ply`` only if the nets give their count at least
+    this probability; else it keeps their pitch (and searches nothing if nothing else was
+    asked).  Why: the search matches the photo's stripe period ``alpha_ply / n``, so with a
+    wrong count it fits a wrong pitch, and frontlit the refinement lost where the nets' count
+    was wrong what it gained where it was right (docs/compare-tuned); 0.5: the count more
+    likely right than wrong, chosen before it was measured (docs/compare-sure-count)."""
 
     scale: float = 0.2
     spp: int = 4
@@ -116,6 +124,7 @@ class FitOptions:
     match_size: bool = False
     choose_count: bool = True
     outside: bool = True
+    sure_count: float = SURE_COUNT
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.scale <= 1 or not 0.05 <= self.display_scale <= 1:
@@ -383,6 +392,18 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
                             f"prior (stages '{OUTSIDE_PARAMS}')")
             options, sigma = options.outside_search(), None
             objective = objective_of(options)
+    if refine and unsure_count(options, neural, count_prior or {}, photo.setup):
+        warnings.append(f"the nets give their ply count {neural.n} a probability of only "
+                        f"{(count_prior or {}).get(neural.n, 0.0):.2f}: a ply pitch fitted "
+                        "with a wrong count is a wrong pitch, so alpha_ply keeps the nets' "
+                        "value")
+        stages = [kept for stage in options.search.stages
+                  if (kept := tuple(k for k in stage if k != "alpha_ply"))]
+        refine = bool(stages)
+        if refine:
+            options = replace(options, search=replace(options.search, params=stages[0],
+                                                      later=tuple(stages[1:])))
+            objective = objective_of(options)
     if seen:
         neural = match_colour(objective, neural, small)
     if not refine:
@@ -431,6 +452,17 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
     return FitResult(neural, refined, loss_neural, best_loss if improved else loss_neural,
                      improved, warnings, result, time.perf_counter() - t0, tilt, sigma,
                      scores, options)
+
+
+def unsure_count(options: FitOptions, p: YarnParams, count_prior: dict[int, float],
+                 setup: str) -> bool:
+    """Whether a fit of ``p`` with ``options`` keeps the nets' ply count without choosing
+    it (:meth:`FitOptions.count_groups`), searches ``alpha_ply``, and has the nets' count
+    below ``options.sure_count`` in ``count_prior`` (the nets' probabilities; none: not
+    unsure)."""
+    return (bool(count_prior) and not options.count_groups(setup)
+            and "alpha_ply" in options.search.searched
+            and count_prior.get(p.n, 0.0) < options.sure_count)
 
 
 def search_view(photo: Photo, scale: float) -> tuple[float, Frame | None]:

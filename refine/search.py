@@ -55,6 +55,9 @@ PROFILE_RISE = 0.5 * float(chi2.ppf(LEVEL, 1))
 DEFAULT_PLY_COUNTS = 1
 #: The weight of the nets' readings in a fit's loss (:class:`ipm.refine.fit.FitOptions`).
 DEFAULT_LEARNED = 0.0
+#: The least probability the nets give their ply count for a fit that keeps it to search the
+#: ply pitch (``sure_count`` of :class:`ipm.refine.fit.FitOptions`, which says why).
+SURE_COUNT = 0.5
 
 #: The parameters a search can move: all but the ply count ``n``, which a fit chooses among the
 #: nets' most likely counts (:func:`search_ply_counts`).  An integer parameter (``m``, ``g``)

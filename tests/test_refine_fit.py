@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -396,6 +397,40 @@ def test_a_fit_chooses_the_ply_count_when_its_search_moves_the_pitch():
     assert FitOptions(search=staged).count_groups("backlit") == ("silhouette",)
     thickness = SearchOptions(params=("R_ply", "r_x", "r_y"))
     assert FitOptions(search=thickness).count_groups("backlit") == ()
+
+
+def test_a_fit_that_keeps_an_unsure_nets_ply_count_keeps_their_pitch(photo):
+    """Frontlit, where a fit keeps the nets' ply count: with that count below even odds
+    the fit says so and does not move alpha_ply (nothing else asked: no search at all; with
+    a thickness stage asked too, only that stage runs); with the count likely, the pitch is
+    searched.  A backlit fit, which chooses its count, is never held back."""
+    from ipm.photo import Photo
+    from ipm.refine.fit import FitOptions, fit, unsure_count
+    from ipm.refine.search import SearchOptions
+    from ipm.render.renderer import Renderer
+
+    truth = preset("golden")
+    neural = truth.replace(alpha_ply=truth.alpha_ply * 1.3)
+    shot = Photo.read(photo, 0.04)
+    quick = FitOptions(search=SearchOptions(budget=6, rescore_seeds=(1,), rescore_top=1),
+                       seeds_per_eval=1)
+    unsure = {truth.n: 0.3, truth.n + 1: 0.7}
+    assert unsure_count(quick, neural, unsure, "frontlit")
+    assert not unsure_count(quick, neural, {truth.n: 0.6}, "frontlit")
+    assert not unsure_count(quick, neural, unsure, "backlit")
+    assert not unsure_count(quick, neural, {}, "frontlit")
+
+    renderer = Renderer()
+    held = fit(shot, neural, renderer, quick, count_prior=unsure)
+    assert held.refined == held.neural and held.search is None
+    assert any("probability of only 0.30" in w for w in held.warnings)
+    searched = fit(shot, neural, renderer, quick, count_prior={truth.n: 0.9})
+    assert searched.search is not None and searched.search.evaluations >= 6
+    staged = replace(quick, search=replace(quick.search, params=("R_ply",),
+                                           later=(("alpha_ply",),)))
+    thickness = fit(shot, neural, renderer, staged, count_prior=unsure)
+    assert thickness.options.search.stages == (("R_ply",),)
+    assert thickness.refined.alpha_ply == neural.alpha_ply
 
 
 def test_the_width_ratio_of_a_render_to_the_photo_core():

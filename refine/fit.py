@@ -148,6 +148,16 @@ class FitOptions:
         return replace(self, search=search, outside=False,
                        seeds_per_eval=min(self.seeds_per_eval, OUTSIDE_SEEDS_PER_EVAL))
 
+    def without_pitch(self) -> FitOptions | None:
+        """These options with ``alpha_ply`` taken out of the search's stages (a fit that
+        keeps the nets' pitch, :func:`unsure_count`); None if no stage is left."""
+        stages = [kept for stage in self.search.stages
+                  if (kept := tuple(k for k in stage if k != "alpha_ply"))]
+        if not stages:
+            return None
+        return replace(self, search=replace(self.search, params=stages[0],
+                                            later=tuple(stages[1:])))
+
     def count_groups(self, setup: str) -> tuple[str, ...]:
         """The groups a fit of a photo of ``setup`` chooses its ply count by (``choose_count``;
         none: the nets' count)."""
@@ -392,17 +402,16 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
                             f"prior (stages '{OUTSIDE_PARAMS}')")
             options, sigma = options.outside_search(), None
             objective = objective_of(options)
-    if refine and unsure_count(options, neural, count_prior or {}, photo.setup):
+    count_prior = count_prior or {}
+    if refine and unsure_count(options, neural, count_prior, photo.setup):
         warnings.append(f"the nets give their ply count {neural.n} a probability of only "
-                        f"{(count_prior or {}).get(neural.n, 0.0):.2f}: a ply pitch fitted "
+                        f"{count_prior.get(neural.n, 0.0):.2f}: a ply pitch fitted "
                         "with a wrong count is a wrong pitch, so alpha_ply keeps the nets' "
                         "value")
-        stages = [kept for stage in options.search.stages
-                  if (kept := tuple(k for k in stage if k != "alpha_ply"))]
-        refine = bool(stages)
+        without = options.without_pitch()
+        refine = without is not None
         if refine:
-            options = replace(options, search=replace(options.search, params=stages[0],
-                                                      later=tuple(stages[1:])))
+            options = without
             objective = objective_of(options)
     if seen:
         neural = match_colour(objective, neural, small)
@@ -433,7 +442,7 @@ def fit(photo: Photo, neural: YarnParams, renderer, options: FitOptions = FitOpt
         choose = with_chosen_count
         if "alpha_ply" in options.search.stages[0]:  # chosen before the search
             start, choose = with_chosen_count(start), None
-    counts = list(dict.fromkeys([start.n, *likeliest_counts(count_prior or {},
+    counts = list(dict.fromkeys([start.n, *likeliest_counts(count_prior,
                                                             options.ply_counts)]))
     result = search_ply_counts(objective, start, counts[:options.ply_counts], options.search,
                                on_eval, sigma, choose)

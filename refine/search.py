@@ -235,9 +235,9 @@ def same_cover(p: YarnParams, start: YarnParams) -> YarnParams:
     ``sqrt(r_x r_y)`` from ``start``'s (within ``m``'s interval), so that the share of a
     ply's side view its fibers cover, about ``m t / r``, stays ``start``'s: a backlit core
     then stays as dark as in the render of ``start``.  Why: a search that narrows the plies
-    of a yarn the nets read too thick would otherwise pack their fiber count into plies a
-    third to a half as wide and render an opaque black core whose ply stripes no longer
-    show (most real-photo fits that missed the stripe period, docs/real-photos-two-seeds);
+    of a yarn the nets read too thick would otherwise pack their fiber count into far
+    narrower plies and render an opaque black core whose ply stripes no longer show (most
+    real-photo fits that missed the stripe period, docs/real-photos-two-seeds);
     keeping the fibers per area instead (``m`` with ``r_x r_y``) rendered see-through
     bundles whose core read too wide (docs/real-photos-keep-fill).  With the cover kept the
     real-photo fits met their targets best (docs/real-photos-default)."""

@@ -167,7 +167,7 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
         result.warnings.insert(0, w)
     for w in result.warnings:
         typer.echo(f"warning: {w}", err=True)
-    shown, neural_img, refined_img = display_renders(renderer, shot, result, options)
+    shown, neural_img, refined_img, capture = display_renders(renderer, shot, result, options)
     write_png(out / "neural.png", neural_img)
     panels, labels = [shown, neural_img], ["photo", f"neural  loss {result.loss_neural:.4f}"]
     if refine:
@@ -180,8 +180,10 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
                                   panels[0].shape[1], out))
         labels.append(f"{knit} patch of the {'refined' if refine else 'neural'} yarn")
     write_png(out / "compare.png", compare_image(panels, labels))
-    write_text(out / "params.json", json.dumps(result.to_dict(pixel_size, shot.setup),
-                                                indent=2))
+    shown_in = {"exposure_stops": round(capture.exposure_stops, 3),
+                "blur_mm": round(capture.blur_mm, 5)}  # the renders' look, not the yarn's
+    write_text(out / "params.json", json.dumps({**result.to_dict(pixel_size, shot.setup),
+                                                "capture": shown_in}, indent=2))
     typer.echo(f"loss neural {result.loss_neural:.4f} -> refined {result.loss_refined:.4f} "
                f"({result.seconds:.0f} s); wrote {out}/params.json, compare.png", err=True)
 

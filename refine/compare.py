@@ -287,7 +287,7 @@ def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Record], picks:
         res = FitResult(YarnParams.from_dict(r["neural"]), YarnParams.from_dict(r["refined"]),
                         r["loss_neural"], r["loss_refined"], r["improved"],
                         tilt_deg=r.get("tilt_deg", 0.0))
-        panels += list(display_renders(renderer, prep.load(photos[i]), res, options))
+        panels += list(display_renders(renderer, prep.load(photos[i]), res, options)[:3])
         labels += [f"{tags[i]}: {Path(r['image']).name}", f"neural  loss {r['loss_neural']:.4f}",
                    f"refined  loss {r['loss_refined']:.4f}"]
     write_png(path, compare_image(panels, labels))

@@ -19,7 +19,8 @@ from scipy.stats import norm
 from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams, clipped
-from ipm.photo import Photo, linear_to_srgb, srgb_to_linear
+from ipm.photo import Photo, srgb_to_linear
+from ipm.refine.capture import in_capture, matched_capture
 from ipm.refine.objective import (
     COUNT_GROUPS,
     THICKNESS,
@@ -520,20 +521,23 @@ def _mean_loss(objective: RenderObjective, p: YarnParams, opts: SearchOptions) -
 
 
 def display_renders(renderer, photo: Photo, result: FitResult, options: FitOptions
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Photometric]:
     """(photo, neural render, refined render) as sRGB at ``display_scale`` (a photo of a
     smaller field of view at a finer pitch, :func:`search_view`), cut to their common
-    extent."""
+    extent, the renders in the photo's capture (its background level and defocus,
+    :func:`ipm.refine.capture.matched_capture` on the refined render), and that capture."""
     scale, frame = search_view(photo, options.display_scale)
     shown = photo.at_pitch(scale)
-    capture = Photometric(rotation_deg=result.tilt_deg)
-    renders = [linear_to_srgb(renderer.render(p, options.search.fiber_seed, scale,
-                                              options.display_spp, photometric=capture,
-                                              frame=frame))
-               for p in (result.neural, result.refined)]
-    h = min(shown.shape[0], renders[0].shape[0])
-    w = min(shown.shape[1], renders[0].shape[1])
-    return tuple(centre_crop(img, h, w) for img in (shown, *renders))
+    tilted = Photometric(rotation_deg=result.tilt_deg)
+    linear = [renderer.render(p, options.search.fiber_seed, scale, options.display_spp,
+                              photometric=tilted, frame=frame)
+              for p in (result.neural, result.refined)]
+    h = min(shown.shape[0], linear[0].shape[0])
+    w = min(shown.shape[1], linear[0].shape[1])
+    shown, *linear = (centre_crop(img, h, w) for img in (shown, *linear))
+    pitch = pixel_size_mm(scale)
+    capture = matched_capture(shown, linear[1], pitch, tilted)
+    return (shown, *(in_capture(img, capture, pitch) for img in linear), capture)
 
 
 def compare_image(panels: list[np.ndarray], labels: list[str]) -> np.ndarray:

@@ -493,3 +493,29 @@ def replace_budget(options, budget):
     from dataclasses import replace
 
     return replace(options, search=replace(options.search, budget=budget))
+
+
+@pytest.mark.parametrize("setup", ["frontlit", "backlit"])
+def test_the_displayed_capture_is_the_photos_exposure_and_defocus(setup):
+    """A render turned into a 'photo' by our own means (a gain in linear light, a Gaussian
+    blur of each channel, the sRGB curve written out): the capture matched to it is that
+    gain in stops and that blur in mm."""
+    from scipy.ndimage import gaussian_filter
+
+    from ipm.refine.capture import matched_capture
+    from ipm.render.renderer import Renderer
+    from ipm.render.scene import setup_options
+
+    linear = Renderer(options=setup_options(setup)).render(preset("golden"), 5, 0.25, 8)
+
+    def photo_of(gain, sigma_px):
+        x = np.stack([gaussian_filter(linear[..., c] * gain, sigma_px, mode="nearest")
+                      for c in range(3)], axis=-1)
+        x = np.clip(x, 0, 1)
+        return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+
+    for gain, sigma_px in ((1.0, 0.0), (0.5, 1.5), (1.5, 4.0)):
+        capture = matched_capture(photo_of(gain, sigma_px), linear, 0.04)
+        assert capture.exposure_stops == pytest.approx(np.log2(gain), abs=0.1), (gain, sigma_px)
+        assert capture.blur_mm / 0.04 == pytest.approx(sigma_px, abs=0.1 + 0.05 * sigma_px), (
+            gain, sigma_px)

@@ -1,0 +1,101 @@
+"""The photo's capture as the fit's renders show it: the background's level (an exposure)
+and the defocus (a Gaussian blur in linear light), each matched to the photo by an image
+measure that does not use the nets.
+
+Why: the scene renders a fixed panel or card level and perfectly sharp fibers, while a
+photo has its own exposure and a lens's depth of field (the Minho microscope photos: a
+panel a third darker than the scene's, cores soft).  The search does not need this (its
+statistics are deviations from the background in units of the core's contrast, blurred
+alike), but a person comparing the photo with ``refined.png`` does: beside a sharp, bright
+render every photo looks wrong.  So ``neural.png``, ``refined.png`` and ``compare.png`` are
+rendered in the capture matched here, and ``params.json`` records it (``capture``).
+
+* Exposure: the render's background level (:func:`ipm.refine.stats.yarn_centre`, the
+  median of the top and bottom rows) brought to the photo's, in linear light.
+* Defocus: the blur at which the render's fiber texture inside the core (:func:`core_texture`)
+  falls to the photo's; none if the render is already as soft as the photo.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import torch
+
+from ipm.photo import defocus, linear_to_srgb, srgb_to_linear
+from ipm.refine.stats import yarn_centre
+from ipm.render.photometric import NOMINAL, Photometric, apply_to_image
+
+#: Scale (pixels) of the high-pass that carries the fiber texture: a fiber's width and a
+#: little more, at the pitches the fit displays.
+TEXTURE_SIGMA_PX = 2.0
+#: The blurs (pixels) tried, smallest to largest; the match is interpolated between them.
+BLUR_STEPS_PX = np.geomspace(0.25, 16.0, 13)
+#: The exposure stays within this many stops of the scene's.
+MAX_STOPS = 4.0
+
+
+def _gray(srgb: np.ndarray) -> np.ndarray:
+    return srgb.mean(axis=-1) if srgb.ndim == 3 else srgb
+
+
+def background_level(srgb: np.ndarray) -> float:
+    """The background's grey level (sRGB) of an image whose yarn runs left to right."""
+    g = torch.from_numpy(np.ascontiguousarray(_gray(srgb), dtype=np.float32))[None, None]
+    return float(yarn_centre(g)[0][0])
+
+
+def core_texture(srgb: np.ndarray) -> float:
+    """How sharply the fibers show inside the core: the standard deviation of the image's
+    high-pass (the image minus its Gaussian blur of :data:`TEXTURE_SIGMA_PX`) over the rows
+    whose median deviation from the background exceeds half the core's, over that core
+    contrast.  Defocus lowers it; the core's darkness and the exposure do not move it."""
+    from skimage.filters import gaussian
+
+    g = _gray(srgb).astype(np.float32)
+    dev = np.abs(np.median(g - background_level(srgb), axis=1))
+    contrast = float(dev.max())
+    if contrast <= 0:
+        return 0.0
+    rows = dev > 0.5 * contrast
+    high = g - gaussian(g, sigma=TEXTURE_SIGMA_PX, mode="nearest", preserve_range=True)
+    return float(high[rows].std() / contrast)
+
+
+def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_size_mm: float,
+                    base: Photometric = NOMINAL) -> Photometric:
+    """``base`` with the exposure and defocus under which ``render_linear`` (H, W, 3, the
+    scene's own capture) looks like ``photo_srgb`` (the same field of view and pitch,
+    ``pixel_size_mm`` per pixel): :attr:`Photometric.exposure_stops` and
+    :attr:`Photometric.blur_mm` (see the module's docstring)."""
+    level = srgb_to_linear(np.float32(background_level(photo_srgb)))
+    own = srgb_to_linear(np.float32(background_level(linear_to_srgb(render_linear))))
+    stops = float(np.clip(np.log2(max(float(level), 1e-4) / max(float(own), 1e-4)),
+                          -MAX_STOPS, MAX_STOPS))
+    exposed = render_linear * 2.0 ** stops
+    target = core_texture(photo_srgb)
+
+    def texture(sigma_px: float) -> float:
+        return core_texture(linear_to_srgb(defocus(exposed, sigma_px)))
+
+    before, blur = texture(0.0), 0.0
+    if before > target:
+        prev_s, prev_t = 0.0, before
+        for s in BLUR_STEPS_PX:
+            t = texture(float(s))
+            if t <= target:  # interpolate between the last step above and this one
+                blur = float(prev_s + (s - prev_s) * (prev_t - target) / max(prev_t - t, 1e-9))
+                break
+            prev_s, prev_t = float(s), t
+        else:
+            blur = float(BLUR_STEPS_PX[-1])
+    return replace(base, exposure_stops=stops, blur_mm=blur * pixel_size_mm)
+
+
+def in_capture(render_linear: np.ndarray, capture: Photometric, pixel_size_mm: float
+               ) -> np.ndarray:
+    """``render_linear`` (the scene's own capture) under ``capture``'s exposure and defocus,
+    as sRGB."""
+    look = Photometric(exposure_stops=capture.exposure_stops, blur_mm=capture.blur_mm)
+    return linear_to_srgb(apply_to_image(render_linear, look, pixel_size_mm))

@@ -13,7 +13,9 @@ photo and its render are measured alike.
 Writes ``index.md`` (the table and the medians), ``fits.jsonl`` (resumable, as ``ipm
 compare``; ``settings.json`` holds the run's flags, and a folder of other flags is refused
 rather than resumed), ``renders/`` and ``contact_sheet.png`` (photo | refined render, every
-photo).  A change of the code is not seen: refit into a new folder after one.
+photo).  The renders are in the photo's capture (its panel level and defocus,
+:func:`ipm.refine.capture.matched_capture`, recorded in ``captures.json``), as ``ipm fit``
+shows them, and measured so.  A change of the code is not seen: refit into a new folder after one.
 
     python -m ipm.benchmarks.real_photos --photos ../shared/real-yarns --pixel-size 0.0021 \\
         --out docs/real-photos
@@ -28,12 +30,14 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from ipm.benchmarks.machine import markdown_header, publish
 from ipm.benchmarks.photo_measures import gray, hairiness, measure_image
 from ipm.dataset import Record, photo_files
 from ipm.frame import PIXEL_SIZE_MM
-from ipm.photo import linear_to_srgb, write_png
+from ipm.photo import write_png
+from ipm.refine.capture import in_capture, matched_capture
 
 #: The photos in the contact sheet are the Minho dataset's (``../shared/real-yarns``).
 ATTRIBUTION = ("The photos: \"Yarn hairiness - loop & protruding fibers dataset\", University "
@@ -67,15 +71,21 @@ def measures(image: np.ndarray, pixel_size_mm: float) -> tuple[float, float]:
 def render_over(renderer, params, photo_shape: tuple[int, int], pixel_size_mm: float,
                 tilt_deg: float, seed: int) -> np.ndarray:
     """The yarn ``params`` rendered backlit over the photo's field of view at
-    :data:`MEASURE_PITCH_MM`, tilted as the photo's yarn: grey sRGB (H, W) in [0, 1]."""
+    :data:`MEASURE_PITCH_MM`, tilted as the photo's yarn, in the scene's own capture: linear
+    (H, W, 3)."""
     from ipm.render.photometric import Photometric
     from ipm.render.scene import Frame
 
     h, w = (round(n * pixel_size_mm / MEASURE_PITCH_MM) for n in photo_shape)
-    linear = renderer.render(params, seed, PIXEL_SIZE_MM / MEASURE_PITCH_MM, MEASURE_SPP,
-                             photometric=Photometric(rotation_deg=tilt_deg),
-                             frame=Frame(w, h, MEASURE_PITCH_MM))
-    return np.clip(linear_to_srgb(linear[..., 0]), 0, 1)
+    return renderer.render(params, seed, PIXEL_SIZE_MM / MEASURE_PITCH_MM, MEASURE_SPP,
+                           photometric=Photometric(rotation_deg=tilt_deg),
+                           frame=Frame(w, h, MEASURE_PITCH_MM))
+
+
+def resized(image: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """A grey image in [0, 1] resampled (Lanczos) to ``shape`` (H, W)."""
+    im = Image.fromarray((image * 255).round().astype(np.uint8))
+    return np.asarray(im.resize(shape[::-1], Image.Resampling.LANCZOS)) / 255.0
 
 
 def relative(a: float, b: float) -> float:
@@ -100,8 +110,6 @@ def main() -> None:
     ap.add_argument("--match-size", action="store_true", help="start from the nets' yarn "
                     "scaled to the photo's core width, as `ipm fit --match-size`")
     args = ap.parse_args()
-
-    from PIL import Image
 
     from ipm.errors import UserError
     from ipm.io import check_same_settings, write_text
@@ -138,15 +146,22 @@ def main() -> None:
     plies = readme_ply_counts(args.photos)
     renderer = Renderer(options=setup_options("backlit"))
     (args.out / "renders").mkdir(exist_ok=True)
+    captures_file = args.out / "captures.json"
+    captures = json.loads(captures_file.read_text()) if captures_file.is_file() else {}
     table, panels = [], []
     for f, row in zip(files, rows, strict=True):
         photo = gray(str(f))
         target = args.out / "renders" / f.name
-        if not target.is_file():
+        if not target.is_file() or f.name not in captures:
             refined = YarnParams.from_dict(row["refined"])
-            img = render_over(renderer, refined, photo.shape, args.pixel_size,
-                              row.get("tilt_deg", 0.0), search.fiber_seed)
-            write_png(target, np.repeat(img[..., None], 3, axis=2))
+            linear = render_over(renderer, refined, photo.shape, args.pixel_size,
+                                 row.get("tilt_deg", 0.0), search.fiber_seed)
+            capture = matched_capture(resized(photo, linear.shape[:2]), linear,
+                                      MEASURE_PITCH_MM)
+            write_png(target, in_capture(linear, capture, MEASURE_PITCH_MM))
+            captures[f.name] = {"exposure_stops": capture.exposure_stops,
+                                "blur_mm": capture.blur_mm}
+            write_text(args.out / "captures.json", json.dumps(captures, indent=2) + "\n")
         render = gray(str(target))
         d_photo, period_photo = measures(photo, args.pixel_size)
         d_render, _ = measures(render, MEASURE_PITCH_MM)
@@ -161,9 +176,7 @@ def main() -> None:
                       "R_ply": fit["R_ply"], "alpha_ply": fit["alpha_ply"],
                       "hairs_photo": [hairs_photo[d] for d in HAIR_SHOWN],
                       "hairs_render": [hairs_render[d] for d in HAIR_SHOWN]})
-        shown = Image.fromarray((photo * 255).round().astype(np.uint8)).resize(
-            render.shape[::-1], Image.Resampling.LANCZOS)
-        panels.append(np.hstack([np.asarray(shown) / 255.0, np.ones((render.shape[0], 4)),
+        panels.append(np.hstack([resized(photo, render.shape), np.ones((render.shape[0], 4)),
                                  render]))
     pairs = [np.hstack([a, np.ones((a.shape[0], 12)), b]) for a, b in
              zip(panels[::2], panels[1::2] + [np.ones_like(panels[0])] * (len(panels) % 2),
@@ -194,7 +207,12 @@ def main() -> None:
              "- Hairiness, fibers per mm reaching " + ", ".join(
                  f"{d:g} mm" for d in HAIR_SHOWN) + " beyond the core's edge: the render's "
              "over the photo's, median " + ", ".join(f"**{r:.2f}**" for r in hair_ratio)
-             + " (1: as hairy as the photo).", "",
+             + " (1: as hairy as the photo).",
+             "- The renders in each photo's capture (`captures.json`): defocus, median "
+             f"{np.median([c['blur_mm'] for c in captures.values()]):.4f} mm (Gaussian sigma "
+             "at the yarn); panel level, median "
+             f"{np.median([c['exposure_stops'] for c in captures.values()]):+.2f} stops from "
+             "the scene's.", "",
              "![photo | refined render, every photo](contact_sheet.png)", "",
              "| photo | n (nets) | n (fit) | README | core photo (mm) | core render (mm) | "
              "diff | period photo (mm) | alpha_ply / n (mm) | diff | "

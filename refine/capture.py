@@ -12,8 +12,8 @@ rendered in the capture matched here, and ``params.json`` records it (``capture`
 
 * Exposure: the render's background level (:func:`ipm.refine.stats.yarn_centre`, the
   median of the top and bottom rows) brought to the photo's, in linear light.
-* Defocus: the blur at which the render's fiber texture inside the core (:func:`core_texture`)
-  falls to the photo's; none if the render is already as soft as the photo.
+* Defocus: the blur at which the render's :func:`sharpness` falls to the photo's; none if
+  the render is already as soft as the photo.
 """
 
 from __future__ import annotations
@@ -27,9 +27,9 @@ from ipm.photo import defocus, linear_to_srgb, srgb_to_linear
 from ipm.refine.stats import yarn_centre
 from ipm.render.photometric import NOMINAL, Photometric, apply_to_image
 
-#: Scale (pixels) of the high-pass that carries the fiber texture: a fiber's width and a
-#: little more, at the pitches the fit displays.
-TEXTURE_SIGMA_PX = 2.0
+#: The two bands (pixels) :func:`sharpness` compares: detail finer than a blur of the first
+#: against detail between the first and the second.
+BANDS_PX = (1.0, 4.0)
 #: The blurs (pixels) tried, smallest to largest; the match is interpolated between them.
 BLUR_STEPS_PX = np.geomspace(0.25, 16.0, 13)
 #: The exposure stays within this many stops of the scene's.
@@ -46,21 +46,21 @@ def background_level(srgb: np.ndarray) -> float:
     return float(yarn_centre(g)[0][0])
 
 
-def core_texture(srgb: np.ndarray) -> float:
-    """How sharply the fibers show inside the core: the standard deviation of the image's
-    high-pass (the image minus its Gaussian blur of :data:`TEXTURE_SIGMA_PX`) over the rows
-    whose median deviation from the background exceeds half the core's, over that core
-    contrast.  Defocus lowers it; the core's darkness and the exposure do not move it."""
+def sharpness(srgb: np.ndarray) -> float:
+    """How sharp an image's edges are, whatever how many there are: the standard deviation
+    of its finest detail (the image minus its Gaussian blur of ``BANDS_PX[0]``) over that of
+    the next band (that blur minus one of ``BANDS_PX[1]``).  Defocus lowers it; the number
+    of fibers, their darkness and the exposure hardly move it.
+
+    Why not the fiber texture of the core: a real core's fibers are packed more densely
+    than a render's, so its texture is lower at any focus, and a blur matched on it made
+    renders softer than the photos' hairs (docs/real-photos-capture-texture, made with it;
+    see its contact sheet)."""
     from skimage.filters import gaussian
 
     g = _gray(srgb).astype(np.float32)
-    dev = np.abs(np.median(g - background_level(srgb), axis=1))
-    contrast = float(dev.max())
-    if contrast <= 0:
-        return 0.0
-    rows = dev > 0.5 * contrast
-    high = g - gaussian(g, sigma=TEXTURE_SIGMA_PX, mode="nearest", preserve_range=True)
-    return float(high[rows].std() / contrast)
+    fine, coarse = (gaussian(g, sigma=s, mode="nearest", preserve_range=True) for s in BANDS_PX)
+    return float((g - fine).std() / max(float((fine - coarse).std()), 1e-9))
 
 
 def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_size_mm: float,
@@ -74,10 +74,10 @@ def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_siz
     stops = float(np.clip(np.log2(max(float(level), 1e-4) / max(float(own), 1e-4)),
                           -MAX_STOPS, MAX_STOPS))
     exposed = render_linear * 2.0 ** stops
-    target = core_texture(photo_srgb)
+    target = sharpness(photo_srgb)
 
     def texture(sigma_px: float) -> float:
-        return core_texture(linear_to_srgb(defocus(exposed, sigma_px)))
+        return sharpness(linear_to_srgb(defocus(exposed, sigma_px)))
 
     before, blur = texture(0.0), 0.0
     if before > target:

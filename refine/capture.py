@@ -1,17 +1,21 @@
-"""The photo's capture as the fit's renders show it: the background's level (an exposure)
-and the defocus (a Gaussian blur in linear light), each matched to the photo by an image
-measure that does not use the nets.
+"""The photo's capture as the fit's renders show it: the background's level and the defocus
+(a Gaussian blur in linear light), each matched to the photo by an image measure that does
+not use the nets.
 
 Why: the scene renders a fixed panel or card level and perfectly sharp fibers, while a
-photo has its own exposure and a lens's depth of field (the Minho microscope photos: a
-panel a third darker than the scene's, cores soft).  The search does not need this (its
-statistics are deviations from the background in units of the core's contrast, blurred
-alike), but a person comparing the photo with ``refined.png`` does: beside a sharp, bright
-render every photo looks wrong.  So ``neural.png``, ``refined.png`` and ``compare.png`` are
-rendered in the capture matched here, and ``params.json`` records it (``capture``).
+photo has its own exposure, card and lens's depth of field (the Minho microscope photos: a
+panel darker than the scene's, cores soft).  The search does not need this (its statistics
+are deviations from the background in units of the core's contrast, blurred alike), but a
+person comparing the photo with ``refined.png`` does: beside a sharp, bright render every
+photo looks wrong.  So ``neural.png``, ``refined.png`` and ``compare.png`` are rendered in
+the capture matched here, and ``params.json`` records it (``capture``).
 
-* Exposure: the render's background level (:func:`ipm.refine.stats.yarn_centre`, the
-  median of the top and bottom rows) brought to the photo's, in linear light.
+* Background level (:func:`background_level`, the median of the top and bottom rows),
+  brought to the photo's in linear light.  Backlit the background is the light itself, so
+  its level is the exposure (:attr:`Photometric.exposure_stops`); frontlit it is the card,
+  whose grey is the scene's, not the camera's (the yarn's brightness is matched apart, by
+  its fibers' colour: :func:`ipm.refine.fit.match_colour`), so the card's albedo is scaled
+  (:attr:`Photometric.backdrop_gain`, a render of its own).
 * Defocus: the blur at which the render's :func:`sharpness` falls to the photo's; none if
   the render is already as soft as the photo.
 """
@@ -32,7 +36,8 @@ from ipm.render.photometric import NOMINAL, Photometric, apply_to_image
 BANDS_PX = (1.0, 4.0)
 #: The blurs (pixels) tried, smallest to largest; the match is interpolated between them.
 BLUR_STEPS_PX = np.geomspace(0.25, 16.0, 13)
-#: The exposure stays within this many stops of the scene's.
+#: The exposure stays within this many stops of the scene's, the card's albedo within
+#: 2 ** this many times.
 MAX_STOPS = 4.0
 
 
@@ -64,16 +69,21 @@ def sharpness(srgb: np.ndarray) -> float:
 
 
 def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_size_mm: float,
-                    base: Photometric = NOMINAL) -> Photometric:
-    """``base`` with the exposure and defocus under which ``render_linear`` (H, W, 3, the
-    scene's own capture) looks like ``photo_srgb`` (the same field of view and pitch,
-    ``pixel_size_mm`` per pixel): :attr:`Photometric.exposure_stops` and
-    :attr:`Photometric.blur_mm` (see the module's docstring)."""
+                    base: Photometric = NOMINAL, setup: str = "backlit") -> Photometric:
+    """``base`` with the background level and defocus under which ``render_linear`` (H, W,
+    3, rendered in ``base``) looks like ``photo_srgb`` (the same field of view and pitch,
+    ``pixel_size_mm`` per pixel): backlit :attr:`Photometric.exposure_stops`, frontlit
+    :attr:`Photometric.backdrop_gain` (which :func:`in_capture` cannot apply: render again
+    with it), and :attr:`Photometric.blur_mm` (see the module's docstring)."""
     level = srgb_to_linear(np.float32(background_level(photo_srgb)))
     own = srgb_to_linear(np.float32(background_level(linear_to_srgb(render_linear))))
     stops = float(np.clip(np.log2(max(float(level), 1e-4) / max(float(own), 1e-4)),
                           -MAX_STOPS, MAX_STOPS))
-    exposed = render_linear * 2.0 ** stops
+    if setup == "backlit":
+        capture, exposed = replace(base, exposure_stops=stops), render_linear * 2.0 ** stops
+    else:
+        capture = replace(base, backdrop_gain=base.backdrop_gain * 2.0 ** stops)
+        exposed = render_linear  # the card hardly moves the sharpness of the yarn's edges
     target = sharpness(photo_srgb)
 
     def texture(sigma_px: float) -> float:
@@ -90,7 +100,7 @@ def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_siz
             prev_s, prev_t = float(s), t
         else:
             blur = float(BLUR_STEPS_PX[-1])
-    return replace(base, exposure_stops=stops, blur_mm=blur * pixel_size_mm)
+    return replace(capture, blur_mm=blur * pixel_size_mm)
 
 
 def in_capture(render_linear: np.ndarray, capture: Photometric, pixel_size_mm: float

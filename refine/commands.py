@@ -180,8 +180,9 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
                                   panels[0].shape[1], out))
         labels.append(f"{knit} patch of the {'refined' if refine else 'neural'} yarn")
     write_png(out / "compare.png", compare_image(panels, labels))
-    shown_in = {"exposure_stops": round(capture.exposure_stops, 3),
-                "blur_mm": round(capture.blur_mm, 5)}  # the renders' look, not the yarn's
+    shown_in = {"exposure_stops": round(capture.exposure_stops, 3),  # the renders' look,
+                "backdrop_gain": round(capture.backdrop_gain, 3),  # not the yarn's
+                "blur_mm": round(capture.blur_mm, 5)}
     write_text(out / "params.json", json.dumps({**result.to_dict(pixel_size, shot.setup),
                                                 "capture": shown_in}, indent=2))
     typer.echo(f"loss neural {result.loss_neural:.4f} -> refined {result.loss_refined:.4f} "

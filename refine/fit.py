@@ -528,16 +528,23 @@ def display_renders(renderer, photo: Photo, result: FitResult, options: FitOptio
     :func:`ipm.refine.capture.matched_capture` on the refined render), and that capture."""
     scale, frame = search_view(photo, options.display_scale)
     shown = photo.at_pitch(scale)
-    tilted = Photometric(rotation_deg=result.tilt_deg)
-    linear = [renderer.render(p, options.search.fiber_seed, scale, options.display_spp,
-                              photometric=tilted, frame=frame)
-              for p in (result.neural, result.refined)]
-    h = min(shown.shape[0], linear[0].shape[0])
-    w = min(shown.shape[1], linear[0].shape[1])
-    shown, *linear = (centre_crop(img, h, w) for img in (shown, *linear))
     pitch = pixel_size_mm(scale)
-    capture = matched_capture(shown, linear[1], pitch, tilted)
-    return (shown, *(in_capture(img, capture, pitch) for img in linear), capture)
+
+    def rendered(p: YarnParams, look: Photometric) -> np.ndarray:
+        img = renderer.render(p, options.search.fiber_seed, scale, options.display_spp,
+                              photometric=look, frame=frame)
+        return centre_crop(img, min(shown.shape[0], img.shape[0]),
+                           min(shown.shape[1], img.shape[1]))
+
+    tilted = Photometric(rotation_deg=result.tilt_deg)
+    refined = rendered(result.refined, tilted)
+    shown = centre_crop(shown, *refined.shape[:2])
+    capture = matched_capture(shown, refined, pitch, tilted, renderer.options.setup)
+    scene = replace(capture, exposure_stops=0.0, blur_mm=0.0)  # what a render must hold
+    if scene != tilted:
+        refined = rendered(result.refined, scene)
+    neural = rendered(result.neural, scene)
+    return (shown, *(in_capture(img, capture, pitch) for img in (neural, refined)), capture)
 
 
 def compare_image(panels: list[np.ndarray], labels: list[str]) -> np.ndarray:

@@ -54,6 +54,10 @@ def test_fit_refine_writes_everything_and_does_not_get_worse(models, photo, tmp_
         assert (out / name).is_file(), name
     result = json.loads((out / "params.json").read_text())
     neural, refined = (YarnParams.from_dict(result[k]) for k in ("neural", "refined"))
+    # the renders are shown in the photo's capture; the photo is a render of the scene's own
+    assert result["capture"]["exposure_stops"] == 0.0
+    assert result["capture"]["backdrop_gain"] == pytest.approx(1.0, rel=0.1)
+    assert result["capture"]["blur_mm"] < 0.02  # the display's pitch
     assert set(PARAM_ORDER) <= set(result["refined"])
     assert result["loss"]["refined"] <= result["loss"]["neural"]
     assert result["settings"]["pixel_size_mm"] == 0.04 and result["evaluations"] <= 12
@@ -499,7 +503,8 @@ def replace_budget(options, budget):
 def test_the_displayed_capture_is_the_photos_exposure_and_defocus(setup):
     """A render turned into a 'photo' by our own means (a gain in linear light, a Gaussian
     blur of each channel, the sRGB curve written out): the capture matched to it is that
-    gain in stops and that blur in mm."""
+    blur in mm, and that gain as the exposure backlit (the panel is the light) and as the
+    card's albedo frontlit (the yarn's brightness is the fibers' colour's to match)."""
     from scipy.ndimage import gaussian_filter
 
     from ipm.refine.capture import matched_capture
@@ -515,7 +520,10 @@ def test_the_displayed_capture_is_the_photos_exposure_and_defocus(setup):
         return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
 
     for gain, sigma_px in ((1.0, 0.0), (0.5, 1.5), (1.5, 4.0)):
-        capture = matched_capture(photo_of(gain, sigma_px), linear, 0.04)
-        assert capture.exposure_stops == pytest.approx(np.log2(gain), abs=0.1), (gain, sigma_px)
+        capture = matched_capture(photo_of(gain, sigma_px), linear, 0.04, setup=setup)
+        stops = np.log2(gain) if setup == "backlit" else 0.0
+        card = 1.0 if setup == "backlit" else gain
+        assert capture.exposure_stops == pytest.approx(stops, abs=0.1), (gain, sigma_px)
+        assert capture.backdrop_gain == pytest.approx(card, rel=0.07), (gain, sigma_px)
         assert capture.blur_mm / 0.04 == pytest.approx(sigma_px, abs=0.1 + 0.05 * sigma_px), (
             gain, sigma_px)

@@ -15,6 +15,7 @@ from ipm.errors import UserError
 from ipm.io import check_not_inputs, check_output, write_text
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  rich_markup_mode="markdown",
                   help="Fiber-level procedural yarn models from one macro photo.")
 
 

@@ -103,7 +103,8 @@ def fit(
     """Infer a yarn's parameters from a photo: the neural ensemble, and with --refine a
     render-and-compare search; writes params.json (neural and refined parameters, their
     losses, the settings), neural.png, refined.png and compare.png (photo | neural |
-    refined).  The nets and the renders are those of the photo's capture setup (--setup)."""
+    refined), the renders shown at the photo's background level and defocus (params.json's
+    capture).  The nets and the renders are those of the photo's capture setup (--setup)."""
     from ipm.photo import Photo, pixel_size_of
     from ipm.refine.fit import FitOptions
     from ipm.render.scene import setup_options

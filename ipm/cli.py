@@ -13,6 +13,7 @@ import typer
 
 from ipm.errors import UserError
 from ipm.io import check_not_inputs, check_output, write_text
+from ipm.params import YARN_HELP
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   rich_markup_mode="markdown",
@@ -66,7 +67,7 @@ class CurveFormat(str, Enum):
 
 @app.command()
 def curves(
-    params: Annotated[Path, typer.Argument(help="yarn parameters (JSON, as `ipm sample`)")],
+    params: Annotated[Path, typer.Argument(help=YARN_HELP)],
     out: Annotated[Path, typer.Option("-o", "--out", help="file to write")],
     seed: Annotated[int, typer.Option(help="seed of the fiber generator")] = 0,
     format: Annotated[CurveFormat, typer.Option(help="npz: arrays (points, offsets, radii, "
@@ -101,7 +102,7 @@ def curves(
 
 @app.command()
 def edit(
-    params: Annotated[Path, typer.Argument(help="yarn parameters (JSON, as `ipm sample`)")],
+    params: Annotated[Path, typer.Argument(help=YARN_HELP)],
     set_: Annotated[list[str], typer.Option("--set", help="NAME=VALUE or NAME=*FACTOR, e.g. "
                                             "alpha_ply=*0.5 (repeat for several)")],
     out: Annotated[Path | None, typer.Option("-o", "--out", help="JSON file to write; "

@@ -134,6 +134,11 @@ def _check_number(name: str, value: Any, iv: Interval) -> float | int:
     return value
 
 
+#: What :meth:`YarnParams.load` reads, for the commands' help.
+YARN_HELP = ("yarn parameters: JSON as `ipm sample` or `ipm predict` write, a render's "
+             "sidecar, or a fit's params.json (its refined yarn)")
+
+
 @dataclass(frozen=True)
 class YarnParams:
     """Parameters of the hierarchical procedural yarn model (paper Table 1).
@@ -230,12 +235,25 @@ class YarnParams:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> YarnParams:
+        """The yarn of a JSON file: flat (``ipm sample``, ``ipm predict``), a render's sidecar
+        (its ``params``) or a fit's ``params.json`` (its ``refined`` yarn, else ``neural``),
+        so that every command that takes a yarn takes what the others write."""
         try:
             text = open(path, encoding="utf-8").read()
+        except FileNotFoundError:
+            raise ParamError(f"{path}: no such file") from None
         except (OSError, UnicodeDecodeError) as e:
             raise ParamError(f"cannot read parameters from {path}: {e}") from None
         try:
-            return cls.from_json(text)
+            d = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise ParamError(f"{path}: not valid JSON: {e}") from None
+        for key in ("refined", "neural", "params"):
+            if isinstance(d, dict) and isinstance(d.get(key), dict):
+                d = d[key]
+                break
+        try:
+            return cls.from_dict(d)
         except ParamError as e:
             raise ParamError(f"{path}: {e}") from None
 

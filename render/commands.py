@@ -12,6 +12,7 @@ import typer
 
 from ipm.errors import UserError
 from ipm.io import check_not_inputs, check_output
+from ipm.params import YARN_HELP
 
 DEFAULT_RENDER_SCALE = 0.25
 DEFAULT_RENDER_SPP = 16
@@ -29,7 +30,7 @@ class RenderFormat(str, Enum):
 
 
 def render(
-    params: Annotated[Path | None, typer.Argument(help="yarn parameters (JSON, as `ipm sample`)")]
+    params: Annotated[Path | None, typer.Argument(help=YARN_HELP)]
     = None,
     out: Annotated[Path, typer.Option("-o", "--out", help="image to write (.png); with "
                                       "--format xml, the scene file")] = Path("yarn.png"),
@@ -110,8 +111,7 @@ def _stitches(text: str) -> tuple[int, int]:
 
 
 def knit(
-    params: Annotated[Path, typer.Argument(help="yarn parameters (JSON, as `ipm sample`, "
-                                           "or a fit's params.json: its refined yarn)")],
+    params: Annotated[Path, typer.Argument(help=YARN_HELP)],
     out: Annotated[Path, typer.Option("-o", "--out", help="image to write (.png)")]
     = Path("patch.png"),
     pattern: Annotated[str, typer.Option(help="knit | purl | garter | rib (1x1)")] = "knit",
@@ -128,10 +128,11 @@ def knit(
     beside the image with everything needed to render it again."""
     from ipm.io import write_text
     from ipm.knit import faces
+    from ipm.params import YarnParams
     from ipm.render.patch import knit_and_render
     from ipm.render.renderer import Renderer, save_png
 
-    p = _yarn_of(params)
+    p = YarnParams.load(params)
     wales, courses = _stitches(stitches)
     faces(pattern, 1, 1)  # an unknown pattern fails before any work
     width, height = _pair(size, "--size", "WIDTHxHEIGHT in pixels", 16, 8000)
@@ -145,27 +146,6 @@ def knit(
     write_text(out.with_suffix(".json"), json.dumps(record, indent=2) + "\n")
     typer.echo(f"{pattern} {wales}x{courses}, {patch.fibers.num_fibers} fibers, "
                f"{width}x{height} px at {record['pixel_size_mm']:.4g} mm/px -> {out}", err=True)
-
-
-def _yarn_of(path: Path):
-    """Yarn parameters from a JSON file: flat (``ipm sample``), a render sidecar
-    (``params``) or a fit's ``params.json`` (its ``refined`` yarn, else ``neural``)."""
-    from ipm.params import YarnParams
-
-    try:
-        d = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise UserError(f"{path}: cannot read parameters ({e})") from None
-    for key in ("refined", "neural", "params"):
-        if isinstance(d, dict) and isinstance(d.get(key), dict):
-            d = d[key]
-            break
-    try:
-        return YarnParams.from_dict(d)
-    except UserError as e:
-        raise UserError(f"{path}: {e}") from None
 
 
 def doctor() -> None:

@@ -3,7 +3,7 @@ import json
 import numpy as np
 import pytest
 
-from ipm.errors import ParamError
+from ipm.errors import ParamError, UserError
 from ipm.params import PAPER_INTERVALS, PARAM_ORDER, YarnParams
 from ipm.presets import PRESET_NAMES, preset
 
@@ -65,3 +65,18 @@ def test_fourth_level_needs_its_helix():
 def test_vector_clips_and_rounds():
     p = YarnParams.from_vector(np.full(len(PARAM_ORDER), 1.7))
     assert p.n == 6 and p.R_ply == PAPER_INTERVALS["R_ply"].hi
+
+
+def test_a_yarn_is_loaded_from_what_any_command_writes(tmp_path):
+    """Flat (`ipm sample`), a render's sidecar (under `params`) and a fit's params.json
+    (`refined`, else `neural`): each command that takes a yarn takes all three."""
+    neural, refined = preset("golden"), preset("golden").replace(alpha_ply=5.0)
+    files = {"flat.json": refined.to_dict(),
+             "sidecar.json": {"params": refined.to_dict(), "spp": 16},
+             "fit.json": {"neural": neural.to_dict(), "refined": refined.to_dict()},
+             "neural-only.json": {"neural": refined.to_dict(), "loss": {"neural": 0.1}}}
+    for name, content in files.items():
+        (tmp_path / name).write_text(json.dumps(content))
+        assert YarnParams.load(tmp_path / name) == refined, name
+    with pytest.raises(UserError, match="no such file"):
+        YarnParams.load(tmp_path / "missing.json")

@@ -520,6 +520,11 @@ def _mean_loss(objective: RenderObjective, p: YarnParams, opts: SearchOptions) -
     return float(np.mean([objective(p, s) for s in (opts.fiber_seed, *opts.rescore_seeds)]))
 
 
+#: A card within this many stops of the photo's is shown as the scene renders it: a render
+#: of its own costs a display render (seconds), and a tenth of a stop is not seen.
+CARD_TOLERANCE_STOPS = 0.1
+
+
 def display_renders(renderer, photo: Photo, result: FitResult, options: FitOptions
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Photometric]:
     """(photo, neural render, refined render) as sRGB at ``display_scale`` (a photo of a
@@ -541,8 +546,10 @@ def display_renders(renderer, photo: Photo, result: FitResult, options: FitOptio
     shown = centre_crop(shown, *refined.shape[:2])
     capture = matched_capture(shown, refined, pitch, tilted, renderer.options.setup)
     scene = replace(capture, exposure_stops=0.0, blur_mm=0.0)  # what a render must hold
-    if scene != tilted:
+    if abs(np.log2(capture.backdrop_gain / tilted.backdrop_gain)) > CARD_TOLERANCE_STOPS:
         refined = rendered(result.refined, scene)
+    else:
+        scene = capture = replace(capture, backdrop_gain=tilted.backdrop_gain)
     neural = rendered(result.neural, scene)
     return (shown, *(in_capture(img, capture, pitch) for img in (neural, refined)), capture)
 

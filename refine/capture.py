@@ -68,22 +68,32 @@ def sharpness(srgb: np.ndarray) -> float:
     return float((g - fine).std() / max(float((fine - coarse).std()), 1e-9))
 
 
-def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_size_mm: float,
-                    base: Photometric = NOMINAL, setup: str = "backlit") -> Photometric:
-    """``base`` with the background level and defocus under which ``render_linear`` (H, W,
-    3, rendered in ``base``) looks like ``photo_srgb`` (the same field of view and pitch,
-    ``pixel_size_mm`` per pixel): backlit :attr:`Photometric.exposure_stops`, frontlit
-    :attr:`Photometric.backdrop_gain` (which :func:`in_capture` cannot apply: render again
-    with it), and :attr:`Photometric.blur_mm` (see the module's docstring)."""
+#: The capture setups whose background is the light itself, so that its level is the
+#: exposure; in the others it is a card, whose level is the card's albedo.
+LIGHT_BACKGROUND = ("backlit",)
+
+
+def matched_level(photo_srgb: np.ndarray, render_linear: np.ndarray, base: Photometric,
+                  setup: str) -> Photometric:
+    """``base`` with the background level of ``render_linear`` (H, W, 3, rendered in
+    ``base``) brought to ``photo_srgb``'s (the same field of view): as the exposure in a
+    setup of :data:`LIGHT_BACKGROUND`, else as the card's albedo
+    (:attr:`Photometric.backdrop_gain`, which needs a render of its own)."""
     level = srgb_to_linear(np.float32(background_level(photo_srgb)))
     own = srgb_to_linear(np.float32(background_level(linear_to_srgb(render_linear))))
     stops = float(np.clip(np.log2(max(float(level), 1e-4) / max(float(own), 1e-4)),
                           -MAX_STOPS, MAX_STOPS))
-    if setup == "backlit":
-        capture, exposed = replace(base, exposure_stops=stops), render_linear * 2.0 ** stops
-    else:
-        capture = replace(base, backdrop_gain=base.backdrop_gain * 2.0 ** stops)
-        exposed = render_linear  # the card hardly moves the sharpness of the yarn's edges
+    if setup in LIGHT_BACKGROUND:
+        return replace(base, exposure_stops=base.exposure_stops + stops)
+    return replace(base, backdrop_gain=base.backdrop_gain * 2.0 ** stops)
+
+
+def matched_blur(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_size_mm: float,
+                 base: Photometric) -> Photometric:
+    """``base`` with the defocus (:attr:`Photometric.blur_mm`) at which ``render_linear``
+    (rendered in ``base``, then given its exposure) is as sharp as ``photo_srgb`` (the same
+    field of view, ``pixel_size_mm`` per pixel; :func:`sharpness`)."""
+    exposed = render_linear * 2.0 ** base.exposure_stops
     target = sharpness(photo_srgb)
 
     def texture(sigma_px: float) -> float:
@@ -100,7 +110,15 @@ def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_siz
             prev_s, prev_t = float(s), t
         else:
             blur = float(BLUR_STEPS_PX[-1])
-    return replace(capture, blur_mm=blur * pixel_size_mm)
+    return replace(base, blur_mm=blur * pixel_size_mm)
+
+
+def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_size_mm: float,
+                    base: Photometric = NOMINAL, setup: str = "backlit") -> Photometric:
+    """:func:`matched_level` and :func:`matched_blur` of one render (the blur measured before
+    a card's new albedo, which hardly moves the sharpness of the yarn's edges)."""
+    return matched_blur(photo_srgb, render_linear, pixel_size_mm,
+                        matched_level(photo_srgb, render_linear, base, setup))
 
 
 def in_capture(render_linear: np.ndarray, capture: Photometric, pixel_size_mm: float

@@ -20,7 +20,7 @@ from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams, clipped
 from ipm.photo import Photo, srgb_to_linear
-from ipm.refine.capture import in_capture, matched_capture
+from ipm.refine.capture import LIGHT_BACKGROUND, in_capture, matched_blur, matched_level
 from ipm.refine.objective import (
     COUNT_GROUPS,
     THICKNESS,
@@ -520,8 +520,8 @@ def _mean_loss(objective: RenderObjective, p: YarnParams, opts: SearchOptions) -
     return float(np.mean([objective(p, s) for s in (opts.fiber_seed, *opts.rescore_seeds)]))
 
 
-#: A card within this many stops of the photo's is shown as the scene renders it: a render
-#: of its own costs a display render (seconds), and a tenth of a stop is not seen.
+#: A card within this many stops of the photo's is shown as the scene renders it (a tenth
+#: of a stop is not seen).
 CARD_TOLERANCE_STOPS = 0.1
 
 
@@ -541,16 +541,21 @@ def display_renders(renderer, photo: Photo, result: FitResult, options: FitOptio
         return centre_crop(img, min(shown.shape[0], img.shape[0]),
                            min(shown.shape[1], img.shape[1]))
 
-    tilted = Photometric(rotation_deg=result.tilt_deg)
-    refined = rendered(result.refined, tilted)
+    tilted = scene = Photometric(rotation_deg=result.tilt_deg)
+    setup = renderer.options.setup
+    if setup not in LIGHT_BACKGROUND:  # the card's albedo, from a render at the search's pitch
+        probe_scale, probe_frame = search_view(photo, options.scale)
+        probe = renderer.render(result.refined, options.search.fiber_seed, probe_scale,
+                                options.spp, photometric=tilted, frame=probe_frame)
+        small = photo.at_pitch(probe_scale)
+        h, w = min(small.shape[0], probe.shape[0]), min(small.shape[1], probe.shape[1])
+        card = matched_level(centre_crop(small, h, w), centre_crop(probe, h, w), tilted, setup)
+        if abs(np.log2(card.backdrop_gain)) > CARD_TOLERANCE_STOPS:
+            scene = card
+    refined, neural = (rendered(p, scene) for p in (result.refined, result.neural))
     shown = centre_crop(shown, *refined.shape[:2])
-    capture = matched_capture(shown, refined, pitch, tilted, renderer.options.setup)
-    scene = replace(capture, exposure_stops=0.0, blur_mm=0.0)  # what a render must hold
-    if abs(np.log2(capture.backdrop_gain / tilted.backdrop_gain)) > CARD_TOLERANCE_STOPS:
-        refined = rendered(result.refined, scene)
-    else:
-        scene = capture = replace(capture, backdrop_gain=tilted.backdrop_gain)
-    neural = rendered(result.neural, scene)
+    level = matched_level(shown, refined, scene, setup) if setup in LIGHT_BACKGROUND else scene
+    capture = matched_blur(shown, refined, pitch, level)
     return (shown, *(in_capture(img, capture, pitch) for img in (neural, refined)), capture)
 
 

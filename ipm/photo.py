@@ -94,6 +94,12 @@ MAX_RESAMPLED_PIXELS = 50_000_000
 PLAUSIBLE_PIXEL_MM = (0.001, 0.1)
 
 
+#: The commands' help for the two ways to give a photo's pixel size (:func:`pixel_size_of`).
+PIXEL_SIZE_HELP = ("mm per photo pixel at the yarn; default: --calibration, or the ipm "
+                   "sidecar <photo>.json (without any, the photo is refused)")
+CALIBRATION_HELP = "pixel size from `ipm calibrate ruler.png -o FILE`"
+
+
 def pixel_size_of(path: str | os.PathLike, pixel_size_mm: float | None = None,
                   calibration: str | os.PathLike | None = None) -> float:
     """A photo's pixel size (mm): ``--pixel-size``, else the calibration file's (``ipm

@@ -9,14 +9,11 @@ from typing import Annotated
 import typer
 
 from ipm.errors import UserError
-from ipm.frame import PIXEL_SIZE_MM
+from ipm.photo import CALIBRATION_HELP, PIXEL_SIZE_HELP
 from ipm.render.commands import SetupOpt
 
 _MODELS_HELP = ("folder with ensemble.json (an `ipm train --out`); default: the models "
                 "shipped for --setup")
-_PIXEL_HELP = (f"size of one photo pixel at the yarn in mm (the scene: {PIXEL_SIZE_MM}); "
-               "the photo is rescaled to the nets' pixel pitch")
-
 
 def train(
     data: Annotated[Path, typer.Option(help="training set (`ipm generate --out`)")],
@@ -96,7 +93,8 @@ def predict(
     out: Annotated[Path | None, typer.Option("-o", "--out", help="JSON file to write; for "
                                              "several photos a folder (created), one "
                                              "<photo name>.json each")] = None,
-    pixel_size: Annotated[float, typer.Option(help=_PIXEL_HELP)] = PIXEL_SIZE_MM,
+    pixel_size: Annotated[float | None, typer.Option(help=PIXEL_SIZE_HELP)] = None,
+    calibration: Annotated[Path | None, typer.Option(help=CALIBRATION_HELP)] = None,
     models: Annotated[Path | None, typer.Option(help=_MODELS_HELP)] = None,
     crops: Annotated[int, typer.Option(help="crops along the yarn to average")] = 3,
     invert: Annotated[bool, typer.Option("--invert", help="invert the photo first (an odd "
@@ -111,12 +109,12 @@ def predict(
     from ipm.dataset import photo_files
     from ipm.io import check_not_inputs, check_output, prepare_folder, write_text
     from ipm.nets.config import PredictConfig
-    from ipm.photo import Photo
+    from ipm.photo import Photo, pixel_size_of
 
     files = [f for p in photos for f in (photo_files(p) if p.is_dir() else [p])]
     if not files:
         raise UserError(f"{', '.join(map(str, photos))} holds no photos")
-    cfg = PredictConfig(tuple(files), models, pixel_size, crops, invert, device, setup)
+    cfg = PredictConfig(tuple(files), models, crops, invert, device, setup)
     single = len(photos) == 1 and not photos[0].is_dir()
     if single:
         targets = [out]
@@ -129,18 +127,20 @@ def predict(
         if len(set(targets)) < len(targets):
             raise UserError("two photos share a name; their JSON files would collide")
     check_not_inputs([t for t in targets if t is not None], files)
+    sizes = [pixel_size_of(f, pixel_size, calibration) for f in files]  # all before any work
     if not single:
         prepare_folder(out)
     ensemble = _load(cfg.models, cfg.device, cfg.setup)
-    warning = ensemble.upsampling_warning(cfg.pixel_size)
-    for file, target in zip(cfg.photos, targets, strict=True):
-        shot, note = Photo.read(file, cfg.pixel_size, cfg.setup).upright()
+    warned = set()
+    for file, size, target in zip(cfg.photos, sizes, targets, strict=True):
+        shot, note = Photo.read(file, size, cfg.setup).upright()
         if note:
             typer.echo(f"note: {note}", err=True)
         params = ensemble.predict(shot.inverted() if cfg.invert else shot, cfg.crops)
-        if warning:  # after the first photo: a pixel size that fails it needs no warning
+        warning = ensemble.upsampling_warning(size)
+        if warning and size not in warned:  # after the photo: a size that fails it needs none
             typer.echo(f"warning: {warning}", err=True)
-            warning = None
+            warned.add(size)
         if single:
             typer.echo(params.to_json())
         else:
@@ -154,7 +154,8 @@ def saliency(
     param: Annotated[str, typer.Option(help="parameter (e.g. alpha_ply) or net (e.g. "
                                        "flyaways) to explain")],
     out: Annotated[Path, typer.Option("-o", "--out", help="PNG to write (the photo's size)")],
-    pixel_size: Annotated[float, typer.Option(help=_PIXEL_HELP)] = PIXEL_SIZE_MM,
+    pixel_size: Annotated[float | None, typer.Option(help=PIXEL_SIZE_HELP)] = None,
+    calibration: Annotated[Path | None, typer.Option(help=CALIBRATION_HELP)] = None,
     models: Annotated[Path | None, typer.Option(help=_MODELS_HELP)] = None,
     invert: Annotated[bool, typer.Option("--invert", help="invert the photo first")] = False,
 ) -> None:
@@ -168,11 +169,12 @@ def saliency(
     from ipm.nets.data import to_input
     from ipm.nets.saliency import net_for, to_image
     from ipm.nets.saliency import saliency as saliency_map
-    from ipm.photo import Photo
+    from ipm.photo import Photo, pixel_size_of
 
-    cfg = SaliencyConfig(photo, param, models, pixel_size, invert)
     check_output(out)
     check_not_inputs([out], [photo])
+    cfg = SaliencyConfig(photo, param, models, pixel_size_of(photo, pixel_size, calibration),
+                         invert)
     shot = Photo.read(cfg.photo, cfg.pixel_size)
     net, columns = net_for(_load(cfg.models, "cpu"), cfg.param, cfg.pixel_size)
     scaled = (shot.inverted() if cfg.invert else shot).at_pitch(net.config.input_scale,

@@ -143,20 +143,17 @@ class TrainConfig:
 
 @dataclass(frozen=True)
 class PredictConfig:
-    """``ipm predict``: the photos, their pixel size at the yarn, the models, crops to
-    average, the photos' capture setup."""
+    """``ipm predict``: the photos, the models, crops to average, the photos' capture setup
+    (each photo's pixel size is its own: :func:`ipm.photo.pixel_size_of`)."""
 
     photos: tuple[Path, ...]
     models: Path | None = None
-    pixel_size: float = PIXEL_SIZE_MM
     crops: int = 3
     invert: bool = False
     device: str = "cpu"
     setup: str = "frontlit"
 
     def __post_init__(self) -> None:
-        if not self.pixel_size > 0:
-            raise UserError(f"pixel size must be positive, got {self.pixel_size}")
         setup_options(self.setup)  # an unknown setup is one line naming the choices
         if not 1 <= self.crops <= 64:
             raise UserError(f"crops must be in 1..64, got {self.crops}")

@@ -9,8 +9,8 @@ from typing import Annotated
 
 import typer
 
-from ipm.frame import PIXEL_SIZE_MM
 from ipm.io import check_not_inputs, check_same_settings, prepare_folder
+from ipm.photo import CALIBRATION_HELP, PIXEL_SIZE_HELP
 from ipm.progress import progress_bar
 from ipm.refine.search import (
     DEFAULT_LEARNED,
@@ -63,11 +63,8 @@ def fit(
                                          "searched in turn without their prior (measured "
                                          "in benchmarks/README.md)")]
     = False,
-    pixel_size: Annotated[float | None, typer.Option(help="mm per photo pixel at the yarn; "
-                                                     "default: --calibration, or the ipm "
-                                                     "sidecar <photo>.json")] = None,
-    calibration: Annotated[Path | None, typer.Option(help="pixel size from `ipm calibrate "
-                                                     "ruler.png -o FILE`")] = None,
+    pixel_size: Annotated[float | None, typer.Option(help=PIXEL_SIZE_HELP)] = None,
+    calibration: Annotated[Path | None, typer.Option(help=CALIBRATION_HELP)] = None,
     models: Annotated[Path | None, typer.Option(help="trained ensemble folder (default: the "
                                                 "models shipped with ipm)")] = None,
     budget: Annotated[int, typer.Option(help="objective evaluations of the search")]
@@ -212,9 +209,9 @@ def compare(
     out: Annotated[Path, typer.Option("--out", "-o", help="report folder (index.md, "
                                       "results.csv, compare.png); a stopped run resumes")]
     = Path("compare"),
-    pixel_size: Annotated[float, typer.Option(help="mm per photo pixel at the yarn, for a "
-                                              "folder of photos (a dataset records its own)")]
-    = PIXEL_SIZE_MM,
+    pixel_size: Annotated[float | None, typer.Option(help=PIXEL_SIZE_HELP + "; a dataset "
+                                                     "records its own")] = None,
+    calibration: Annotated[Path | None, typer.Option(help=CALIBRATION_HELP)] = None,
     count: Annotated[int | None, typer.Option(min=1, help="fit only the first N photos (by "
                                               "name)")] = None,
     models: Annotated[Path | None, typer.Option(help="trained ensemble folder (default: the "
@@ -264,11 +261,12 @@ def compare(
                          learned=learned, detail=detail, match_size=match_size,
                          choose_count=not nets_ply_count,
                          outside=params == _DEFAULT_PARAMS and prior, sure_count=sure_count)
-    listed = cmp.photos_in(photos, pixel_size, count, setup)
+    listed = cmp.photos_in(photos, pixel_size, count, setup, calibration)
     setup = listed[0].setup
     ensemble = Ensemble.load(models, setup=setup)
     prepare_folder(out)
     settings = {"photos": str(photos), "count": len(listed), "pixel_size_mm": pixel_size,
+                **({"calibration": str(calibration)} if calibration else {}),
                 "models": str(models) if models else "shipped", "budget": budget,
                 "algorithm": algorithm, "params": list(options.search.params), "prior": prior,
                 "invert": invert}

@@ -24,7 +24,7 @@ from ipm.dataset import MANIFEST, PHOTO_SUFFIXES, Record, photo_files, read_mani
 from ipm.errors import UserError
 from ipm.io import write_text
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
-from ipm.photo import Photo
+from ipm.photo import Photo, pixel_size_of
 from ipm.refine.search import LEVEL
 
 FITS = "fits.jsonl"
@@ -48,20 +48,22 @@ class PhotoPrep:
         return photo.inverted() if self.invert else photo
 
 
-def photos_in(folder: Path, pixel_size_mm: float, count: int | None = None,
-              setup: str | None = None) -> list[Record]:
+def photos_in(folder: Path, pixel_size_mm: float | None, count: int | None = None,
+              setup: str | None = None, calibration: Path | None = None) -> list[Record]:
     """The photos of ``folder`` sorted by name: a dataset's (with labels, pixel sizes and
-    capture setup) if it holds a manifest, else every image file (at ``pixel_size_mm``, of
-    capture ``setup``, frontlit if None).  They must all be of one setup (``setup``, if
-    given), since one ensemble and one scene fit them."""
+    capture setup) if it holds a manifest, else every image file (of capture ``setup``,
+    frontlit if None) at its pixel size (``pixel_size_mm``, ``calibration`` or its sidecar:
+    :func:`ipm.photo.pixel_size_of`; a photo without one is refused, as by ``ipm fit``).
+    They must all be of one setup (``setup``, if given), since one ensemble and one scene
+    fit them."""
     folder = Path(folder)
     if not folder.is_dir():
         raise UserError(f"{folder} is not a folder of photos")
     if (folder / MANIFEST).is_file():
         photos = read_manifest(folder)
     else:
-        photos = [Record(p, pixel_size_mm, setup=setup or "frontlit")
-                  for p in photo_files(folder)]
+        photos = [Record(p, pixel_size_of(p, pixel_size_mm, calibration),
+                         setup=setup or "frontlit") for p in photo_files(folder)]
     if not photos:
         raise UserError(f"{folder} holds no photos ({', '.join(PHOTO_SUFFIXES)})")
     setups = sorted({p.setup for p in photos} | ({setup} if setup else set()))

@@ -85,6 +85,24 @@ def test_fit_needs_a_pixel_size(tmp_path):
                        tmp_path / "fit"), "not an ipm calibration file")
 
 
+def test_every_command_that_reads_a_photo_needs_its_pixel_size(tmp_path):
+    """No silent default anywhere: predict, saliency and compare (a folder of photos) refuse
+    a photo without --pixel-size, calibration or sidecar in one line, and take its sidecar."""
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    shutil.copy(ROOT / "examples" / "golden.png", photos / "yarn.png")  # without its sidecar
+    for args in (("predict", photos / "yarn.png"),
+                 ("saliency", photos / "yarn.png", "--param", "n", "-o", tmp_path / "s.png"),
+                 ("compare", photos, "--out", tmp_path / "cmp")):
+        one_line_error(ipm(*args), "yarn.png: its pixel size is unknown")
+    assert not (tmp_path / "cmp").exists() and not (tmp_path / "s.png").exists()
+    (photos / "yarn.json").write_text(json.dumps({"pixel_size_mm": 0.02}))
+    r = ipm("predict", photos / "yarn.png")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout) == json.loads(ipm("predict", ROOT / "examples" / "golden.png",
+                                                  "--pixel-size", "0.02").stdout)
+
+
 def test_fit_a_backlit_photo_with_frontlit_nets_is_one_line(tmp_path):
     """`--setup backlit` reads the photo as backlit and asks for backlit nets: the frontlit
     ones are refused in one line, before any folder is made; an unknown setup too."""

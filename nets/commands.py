@@ -15,6 +15,7 @@ from ipm.render.commands import SetupOpt
 _MODELS_HELP = ("folder with ensemble.json (an `ipm train --out`); default: the models "
                 "shipped for --setup")
 
+
 def train(
     data: Annotated[Path, typer.Option(help="training set (`ipm generate --out`)")],
     val: Annotated[Path, typer.Option(help="validation set, other seeds")],

@@ -529,8 +529,9 @@ def display_renders(renderer, photo: Photo, result: FitResult, options: FitOptio
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Photometric]:
     """(photo, neural render, refined render) as sRGB at ``display_scale`` (a photo of a
     smaller field of view at a finer pitch, :func:`search_view`), cut to their common
-    extent, the renders in the photo's capture (its background level and defocus,
-    :func:`ipm.refine.capture.matched_capture` on the refined render), and that capture."""
+    extent, the renders in the photo's capture, and that capture (:mod:`ipm.refine.capture`:
+    frontlit the card's albedo matched on a render at the search's pitch, rendered with; the
+    exposure, backlit, and the defocus matched on the refined render, applied to both)."""
     scale, frame = search_view(photo, options.display_scale)
     shown = photo.at_pitch(scale)
     pitch = pixel_size_mm(scale)

@@ -156,6 +156,7 @@ def labelled_report(rows: list[dict], data: Path) -> str:
 
 
 def labelled_main(args: argparse.Namespace) -> None:
+    from ipm.dataset import MANIFEST
     from ipm.nets.ensemble import Ensemble
     from ipm.refine.compare import photos_in
     from ipm.refine.fit import FitOptions
@@ -163,7 +164,9 @@ def labelled_main(args: argparse.Namespace) -> None:
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
-    records = photos_in(args.data, 0.0, args.count)
+    if not (Path(args.data) / MANIFEST).is_file():
+        raise SystemExit(f"{args.data} has no labels (a manifest.jsonl with parameters)")
+    records = photos_in(args.data, None, args.count)
     if records[0].params is None:
         raise SystemExit(f"{args.data} has no labels (a manifest.jsonl with parameters)")
     setup = records[0].setup

@@ -140,7 +140,8 @@ def main() -> None:
         raise SystemExit(f"error: {e}") from None
     write_text(args.out / "settings.json", json.dumps(settings, indent=2) + "\n")
     rows = fit_all(args.out / "fits.jsonl", records, lambda i, photo: ensemble.predict(photo),
-                   options, None if args.no_prior else ensemble.sigma(args.pixel_size),
+                   options, None if args.no_prior else (
+                       lambda photo: ensemble.sigma(photo.pixel_size_mm)),
                    progress=lambda done, total: print(f"fits {done}/{total}", flush=True),
                    count_prior_of=ensemble.ply_count_probabilities)
     plies = readme_ply_counts(args.photos)

@@ -235,7 +235,8 @@ def refine_all(folder: Path, records: list, neural: list[dict], sigma: dict, bud
     path = folder / "cache" / "refine.jsonl"
     path.parent.mkdir(parents=True, exist_ok=True)
     return fit_all(path, records, lambda i, _: YarnParams.from_dict(neural[i]),
-                   FitOptions(search=SearchOptions(budget=budget)), sigma, progress=progress)
+                   FitOptions(search=SearchOptions(budget=budget)),
+                   None if sigma is None else (lambda _: sigma), progress=progress)
 
 
 # --- stage 4: robustness ----------------------------------------------------------------------

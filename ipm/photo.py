@@ -96,18 +96,29 @@ PLAUSIBLE_PIXEL_MM = (0.001, 0.1)
 
 #: The commands' help for the two ways to give a photo's pixel size (:func:`pixel_size_of`).
 PIXEL_SIZE_HELP = ("mm per photo pixel at the yarn; default: --calibration, or the ipm "
-                   "sidecar <photo>.json (without any, the photo is refused)")
+                   "sidecar `<photo>.json` (without any, the photo is refused)")
 CALIBRATION_HELP = "pixel size from `ipm calibrate ruler.png -o FILE`"
+
+
+def sidecar_pixel_size(path: str | os.PathLike) -> tuple[Path, float] | None:
+    """(the sidecar, its pixel size) of a photo: the ``pixel_size_mm`` of the ipm sidecar
+    beside it (``<photo>.json`` of ``ipm render``), or None."""
+    import json
+
+    sidecar = Path(path).with_suffix(".json")
+    try:
+        value = float(json.loads(sidecar.read_text(encoding="utf-8"))["pixel_size_mm"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return (sidecar, value) if np.isfinite(value) and value > 0 else None
 
 
 def pixel_size_of(path: str | os.PathLike, pixel_size_mm: float | None = None,
                   calibration: str | os.PathLike | None = None) -> float:
     """A photo's pixel size (mm): ``--pixel-size``, else the calibration file's (``ipm
-    calibrate``), else the ``pixel_size_mm`` of the ipm sidecar beside it (``<photo>.json``
-    of ``ipm render``); without any of them a one-line :class:`UserError`, since every
-    length ipm reports follows from it."""
-    import json
-
+    calibrate``), else its sidecar's (:func:`sidecar_pixel_size`); without any of them a
+    one-line :class:`UserError`, since every length ipm reports follows from it (a photo
+    that is not there is said to be missing first)."""
     if pixel_size_mm is not None and calibration is not None:
         raise UserError("give --pixel-size or --calibration, not both")
     if pixel_size_mm is not None:
@@ -118,13 +129,10 @@ def pixel_size_of(path: str | os.PathLike, pixel_size_mm: float | None = None,
         from ipm.calibrate import Calibration
 
         return Calibration.load(calibration).pixel_size_mm
-    sidecar = Path(path).with_suffix(".json")
-    try:
-        value = float(json.loads(sidecar.read_text(encoding="utf-8"))["pixel_size_mm"])
-        if np.isfinite(value) and value > 0:
-            return value
-    except (OSError, ValueError, KeyError, TypeError):
-        pass
+    if found := sidecar_pixel_size(path):
+        return found[1]
+    if not Path(path).is_file():
+        raise UserError(f"{os.fspath(path)}: no such file")
     raise UserError(f"{os.fspath(path)}: its pixel size is unknown; give --pixel-size MM, or "
                     "--calibration FILE from `ipm calibrate ruler.png -o FILE` (a photo of "
                     "a millimetre scale taken with the same setup)")

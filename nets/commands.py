@@ -93,7 +93,7 @@ def predict(
                                                  "or folders of them")],
     out: Annotated[Path | None, typer.Option("-o", "--out", help="JSON file to write; for "
                                              "several photos a folder (created), one "
-                                             "<photo name>.json each")] = None,
+                                             "`<photo name>.json` each")] = None,
     pixel_size: Annotated[float | None, typer.Option(help=PIXEL_SIZE_HELP)] = None,
     calibration: Annotated[Path | None, typer.Option(help=CALIBRATION_HELP)] = None,
     models: Annotated[Path | None, typer.Option(help=_MODELS_HELP)] = None,
@@ -110,7 +110,7 @@ def predict(
     from ipm.dataset import photo_files
     from ipm.io import check_not_inputs, check_output, prepare_folder, write_text
     from ipm.nets.config import PredictConfig
-    from ipm.photo import Photo, pixel_size_of
+    from ipm.photo import Photo, pixel_size_of, sidecar_pixel_size
 
     files = [f for p in photos for f in (photo_files(p) if p.is_dir() else [p])]
     if not files:
@@ -127,7 +127,8 @@ def predict(
         targets = [out / f"{f.stem}.json" for f in files]
         if len(set(targets)) < len(targets):
             raise UserError("two photos share a name; their JSON files would collide")
-    check_not_inputs([t for t in targets if t is not None], files)
+    sidecars = [found[0] for f in files if (found := sidecar_pixel_size(f))]
+    check_not_inputs([t for t in targets if t is not None], [*files, *sidecars])
     sizes = [pixel_size_of(f, pixel_size, calibration) for f in files]  # all before any work
     if not single:
         prepare_folder(out)

@@ -36,8 +36,8 @@ from ipm.render.photometric import NOMINAL, Photometric, apply_to_image
 BANDS_PX = (1.0, 4.0)
 #: The blurs (pixels) tried, smallest to largest; the match is interpolated between them.
 BLUR_STEPS_PX = np.geomspace(0.25, 16.0, 13)
-#: The exposure stays within this many stops of the scene's, the card's albedo within
-#: 2 ** this many times.
+#: A match moves the exposure at most this many stops, the card's albedo at most 2 ** this
+#: many times.
 MAX_STOPS = 4.0
 
 

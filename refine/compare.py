@@ -93,7 +93,7 @@ def fit_row(record: Record, photo: Photo, neural: YarnParams, renderer, options,
 
 
 def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Photo],
-            YarnParams], options, sigma: dict[str, float] | None,
+            YarnParams], options, sigma_of: Callable[[Photo], dict[str, float]] | None,
             prep: PhotoPrep = PhotoPrep(),
             progress: Callable[[int, int], None] | None = None,
             count_prior_of: Callable[[Photo], dict[int, float]] | None = None,
@@ -102,7 +102,9 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
     """Fit every photo (all of one capture setup), resuming from the rows already in the
     JSON-lines file ``path``.
 
-    ``neural_of(i, photo)`` gives the nets' parameters of photo ``i``, ``count_prior_of``
+    ``neural_of(i, photo)`` gives the nets' parameters of photo ``i``, ``sigma_of`` their
+    error per parameter at the photo's pixel size (the search's prior; None: without one),
+    ``count_prior_of``
     the nets' probability of each ply count (default: none, the nets' count), ``readings``
     the nets' readings for the loss and ``detail_of`` the detail nets' for a photo
     (:func:`ipm.refine.fit.fit`).  A row is appended
@@ -134,7 +136,8 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
                 row = {"image": str(photos[i].image), "error": str(e)}
             else:
                 renderer = renderer or Renderer(options=setup_options(photo.setup))
-                row = fit_row(photos[i], photo, neural, renderer, options, sigma,
+                row = fit_row(photos[i], photo, neural, renderer, options,
+                              sigma_of(photo) if sigma_of else None,
                               count_prior_of(photo) if count_prior_of else None, readings,
                               detail_of(photo) if detail_of else None)
             f.write(json.dumps(row) + "\n")
@@ -275,7 +278,8 @@ def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Record], picks:
                   tags: dict[int, str], prep: PhotoPrep = PhotoPrep(),
                   display_scale: float = 0.25) -> None:
     """photo | neural | refined for the rows ``picks``, each labelled ``tags[i]`` and its
-    losses, rendered with the fit's fiber seed in the shared scene."""
+    losses, rendered with the fit's fiber seed in the shared scene, shown in the photo's
+    capture (:func:`ipm.refine.fit.display_renders`)."""
     from ipm.photo import write_png
     from ipm.refine.fit import FitOptions, FitResult, compare_image, display_renders
     from ipm.render.renderer import Renderer
@@ -303,7 +307,7 @@ def compare(photos: Sequence[Record], out: Path, ensemble, options, prior: bool 
     truth = [p.params for p in photos]
     out.mkdir(parents=True, exist_ok=True)
     every = fit_all(out / FITS, photos, lambda i, photo: ensemble.predict(photo), options,
-        ensemble.sigma(photos[0].pixel_size_mm) if prior and photos else None, prep,
+        (lambda photo: ensemble.sigma(photo.pixel_size_mm)) if prior else None, prep,
         progress, ensemble.ply_count_probabilities, ensemble.readings,
         lambda photo: ensemble.detail_readings(photo.pixel_size_mm))
     fitted = [i for i, r in enumerate(every) if "error" not in r]

@@ -96,7 +96,11 @@ def test_every_command_that_reads_a_photo_needs_its_pixel_size(tmp_path):
                  ("compare", photos, "--out", tmp_path / "cmp")):
         one_line_error(ipm(*args), "yarn.png: its pixel size is unknown")
     assert not (tmp_path / "cmp").exists() and not (tmp_path / "s.png").exists()
+    one_line_error(ipm("predict", photos / "missing.png"), "missing.png: no such file")
     (photos / "yarn.json").write_text(json.dumps({"pixel_size_mm": 0.02}))
+    # the sidecar it reads is an input: not overwritten by the prediction
+    one_line_error(ipm("predict", photos / "yarn.png", "-o", photos / "yarn.json"),
+                   "is an input of this command")
     r = ipm("predict", photos / "yarn.png")
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout) == json.loads(ipm("predict", ROOT / "examples" / "golden.png",

@@ -258,8 +258,10 @@ def test_predict_bad_photo(trained, tmp_path, kind, message):
 
 
 def test_predict_bad_photo_cli(trained, tmp_path):
-    r = ipm("predict", _bad_photo(tmp_path, "truncated"), "--models", trained["ensemble"])
+    r = ipm("predict", _bad_photo(tmp_path, "truncated"), "--pixel-size", 0.01 / SCALE,
+            "--models", trained["ensemble"])
     _one_line_error(r)
+    assert "pixel size" not in r.stderr, r.stderr  # the photo's fault, said
 
 
 @pytest.mark.parametrize("mode", ["L", "I;16", "RGBA", "P"])

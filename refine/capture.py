@@ -37,8 +37,9 @@ BANDS_PX = (1.0, 4.0)
 #: The blurs (pixels) tried, smallest to largest; the match is interpolated between them.
 BLUR_STEPS_PX = np.geomspace(0.25, 16.0, 13)
 #: A match moves the exposure at most this many stops, the card's albedo at most 2 ** this
-#: many times.
-MAX_STOPS = 4.0
+#: many times: enough for the scene's near-black card to turn white (the scene keeps an
+#: albedo at most 1).
+MAX_STOPS = 6.0
 
 
 def _gray(srgb: np.ndarray) -> np.ndarray:

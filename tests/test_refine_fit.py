@@ -525,5 +525,14 @@ def test_the_displayed_capture_is_the_photos_exposure_and_defocus(setup):
         card = 1.0 if setup == "backlit" else gain
         assert capture.exposure_stops == pytest.approx(stops, abs=0.1), (gain, sigma_px)
         assert capture.backdrop_gain == pytest.approx(card, rel=0.07), (gain, sigma_px)
+    if setup == "frontlit":  # a light card (the scene's albedo times 30) is matched in full
+        from ipm.render.photometric import Photometric
+
+        light = Renderer(options=setup_options(setup)).render(
+            preset("golden"), 5, 0.25, 8, photometric=Photometric(backdrop_gain=30.0))
+        light = np.clip(light, 0, 1)
+        light = np.where(light <= 0.0031308, 12.92 * light, 1.055 * light ** (1 / 2.4) - 0.055)
+        assert matched_capture(light, linear, 0.04, setup=setup).backdrop_gain == \
+            pytest.approx(30.0, rel=0.07)
         assert capture.blur_mm / 0.04 == pytest.approx(sigma_px, abs=0.1 + 0.05 * sigma_px), (
             gain, sigma_px)

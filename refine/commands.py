@@ -139,7 +139,7 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
     """The body of ``ipm fit`` once the photo is read and the folder made."""
     from ipm.io import write_text
     from ipm.photo import write_png
-    from ipm.refine.fit import compare_image, display_renders, fit
+    from ipm.refine.fit import compare_image, display_renders, fit, summary_lines
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
@@ -183,6 +183,8 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
                 "blur_mm": round(capture.blur_mm, 5)}
     write_text(out / "params.json", json.dumps({**result.to_dict(pixel_size, shot.setup),
                                                 "capture": shown_in}, indent=2))
+    for line in summary_lines(result):
+        typer.echo(line, err=True)
     typer.echo(f"loss neural {result.loss_neural:.4f} -> refined {result.loss_refined:.4f} "
                f"({result.seconds:.0f} s); wrote {out}/params.json, compare.png", err=True)
 

@@ -560,6 +560,21 @@ def display_renders(renderer, photo: Photo, result: FitResult, options: FitOptio
     return (shown, *(in_capture(img, capture, pitch) for img in (neural, refined)), capture)
 
 
+def summary_lines(result: FitResult) -> list[str]:
+    """The fitted yarn in a few lines for the terminal: the ply count (and the nets') and the
+    six raw-yarn parameters with their :data:`LEVEL` intervals (``params.json`` holds all
+    twenty and where each interval comes from)."""
+    r, n = result.refined, result.neural
+    lines = [f"fitted yarn ({LEVEL:.0%} intervals; params.json holds every parameter):",
+             f"  n          {r.n:>7d}     plies" + ("" if r.n == n.n else f" (nets: {n.n})")]
+    intervals = result.intervals()
+    for k in ("R_ply", "alpha_ply", "r_x", "r_y", "alpha", "m"):
+        iv = f"[{intervals[k][0]:.3g}, {intervals[k][1]:.3g}]" if k in intervals else ""
+        lines.append(f"  {k:<10s} {getattr(r, k):>7.3g} {PAPER_INTERVALS[k].unit:<3s} "
+                     f"{iv:<18s} {PAPER_INTERVALS[k].meaning}")
+    return lines
+
+
 def compare_image(panels: list[np.ndarray], labels: list[str]) -> np.ndarray:
     """sRGB panels of one width stacked top to bottom (the yarn is wide), each with its label
     underneath; (H, W, 3) uint8."""

@@ -54,6 +54,14 @@ def test_fit_refine_writes_everything_and_does_not_get_worse(models, photo, tmp_
         assert (out / name).is_file(), name
     result = json.loads((out / "params.json").read_text())
     neural, refined = (YarnParams.from_dict(result[k]) for k in ("neural", "refined"))
+    # the terminal shows the fitted yarn: each raw parameter's value and interval as saved
+    said = {line.split()[0]: line.split() for line in r.stderr.splitlines()
+            if line.startswith("  ")}
+    assert int(said["n"][1]) == refined.n
+    for k in ("R_ply", "alpha_ply", "r_x", "r_y", "alpha", "m"):
+        assert float(said[k][1]) == pytest.approx(getattr(refined, k), rel=6e-3), k
+        lo = float(said[k][3 if k != "m" else 2].strip("[,"))
+        assert lo == pytest.approx(result["intervals"][k][0], rel=6e-3, abs=1e-3), k
     # the renders are shown in the photo's capture; the photo is a render of the scene's own
     assert result["capture"]["exposure_stops"] == 0.0
     assert result["capture"]["backdrop_gain"] == pytest.approx(1.0, rel=0.1)

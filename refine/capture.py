@@ -29,7 +29,7 @@ import torch
 
 from ipm.photo import defocus, linear_to_srgb, srgb_to_linear
 from ipm.refine.stats import yarn_centre
-from ipm.render.photometric import NOMINAL, Photometric, apply_to_image
+from ipm.render.photometric import LOOK, NOMINAL, Photometric, apply_to_image
 
 #: The two bands (pixels) :func:`sharpness` compares: detail finer than a blur of the first
 #: against detail between the first and the second.
@@ -120,6 +120,18 @@ def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_siz
     a card's new albedo, which hardly moves the sharpness of the yarn's edges)."""
     return matched_blur(photo_srgb, render_linear, pixel_size_mm,
                         matched_level(photo_srgb, render_linear, base, setup))
+
+
+def card_warning(capture: Photometric, setup: str) -> str | None:
+    """A warning if a frontlit photo's card (:func:`matched_level`) is lighter or darker than
+    any the nets were trained on (:data:`ipm.render.photometric.LOOK`'s ``backdrop_gain``):
+    a look they never saw, whose reading nothing has measured."""
+    lo, hi = LOOK["backdrop_gain"]
+    if setup in LIGHT_BACKGROUND or lo <= capture.backdrop_gain <= hi:
+        return None
+    return (f"the photo's background is a card {capture.backdrop_gain:.2g} times as light as "
+            f"the scene's, outside the {lo:g}-{hi:g} the nets were trained on: they may "
+            "misread the yarn; photograph it over a dark to mid-grey card")
 
 
 def in_capture(render_linear: np.ndarray, capture: Photometric, pixel_size_mm: float

@@ -139,6 +139,7 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
     """The body of ``ipm fit`` once the photo is read and the folder made."""
     from ipm.io import write_text
     from ipm.photo import write_png
+    from ipm.refine.capture import card_warning
     from ipm.refine.fit import compare_image, display_renders, fit, summary_lines
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
@@ -166,6 +167,9 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
     for w in result.warnings:
         typer.echo(f"warning: {w}", err=True)
     shown, neural_img, refined_img, capture = display_renders(renderer, shot, result, options)
+    if w := card_warning(capture, shot.setup):
+        typer.echo(f"warning: {w}", err=True)
+        result.warnings.append(w)
     write_png(out / "neural.png", neural_img)
     panels, labels = [shown, neural_img], ["photo", f"neural  loss {result.loss_neural:.4f}"]
     if refine:

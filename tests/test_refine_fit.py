@@ -515,7 +515,7 @@ def test_the_displayed_capture_is_the_photos_exposure_and_defocus(setup):
     card's albedo frontlit (the yarn's brightness is the fibers' colour's to match)."""
     from scipy.ndimage import gaussian_filter
 
-    from ipm.refine.capture import matched_capture
+    from ipm.refine.capture import card_warning, matched_capture
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
@@ -540,7 +540,11 @@ def test_the_displayed_capture_is_the_photos_exposure_and_defocus(setup):
             preset("golden"), 5, 0.25, 8, photometric=Photometric(backdrop_gain=30.0))
         light = np.clip(light, 0, 1)
         light = np.where(light <= 0.0031308, 12.92 * light, 1.055 * light ** (1 / 2.4) - 0.055)
-        assert matched_capture(light, linear, 0.04, setup=setup).backdrop_gain == \
-            pytest.approx(30.0, rel=0.07)
+        on_light = matched_capture(light, linear, 0.04, setup=setup)
+        assert on_light.backdrop_gain == pytest.approx(30.0, rel=0.07)
+        # lighter than any card the nets saw: said; the scene's own card: not
+        assert "30 times as light" in card_warning(on_light, setup)
+        assert card_warning(matched_capture(photo_of(1.0, 0.0), linear, 0.04, setup=setup),
+                            setup) is None
         assert capture.blur_mm / 0.04 == pytest.approx(sigma_px, abs=0.1 + 0.05 * sigma_px), (
             gain, sigma_px)

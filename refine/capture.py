@@ -125,7 +125,7 @@ def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_siz
 def card_warning(capture: Photometric, setup: str) -> str | None:
     """A warning if a frontlit photo's card (:func:`matched_level`) is lighter or darker than
     any the nets were trained on (:data:`ipm.render.photometric.LOOK`'s ``backdrop_gain``):
-    a look they never saw, whose reading nothing has measured."""
+    how the nets read lighter cards is in benchmarks/results/card_sweep.md."""
     lo, hi = LOOK["backdrop_gain"]
     if setup in LIGHT_BACKGROUND or lo <= capture.backdrop_gain <= hi:
         return None

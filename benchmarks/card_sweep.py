@@ -16,6 +16,7 @@ import argparse
 import numpy as np
 
 from ipm.benchmarks.machine import markdown_header, publish
+from ipm.benchmarks.nets_accuracy import baseline_mae, mae_by_param
 from ipm.dataset import read_manifest
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import RAW_CONTINUOUS
@@ -54,9 +55,7 @@ def main() -> None:
             pred[g].append(ens.predict(photo))
         print(f"{i + 1}/{len(records)}", flush=True)
     true = [r.params for r in records]
-    base = ens.mean_prediction(records[0].pixel_size_mm)
-    base_mae = {k: float(np.mean([abs(base[k] - getattr(t, k)) for t in true]))
-                for k in RAW_CONTINUOUS}
+    base_mae = baseline_mae(ens, true, records[0].pixel_size_mm, RAW_CONTINUOUS)
     lo, hi = LOOK["backdrop_gain"]
     rows = ["| card albedo (times the scene's) | trained on | ply count right | "
             + " | ".join(f"{k} MAE / mean's" for k in RAW_CONTINUOUS) + " |",
@@ -64,9 +63,7 @@ def main() -> None:
     data = {}
     for g, ps in pred.items():
         right = float(np.mean([p.n == t.n for p, t in zip(ps, true, strict=True)]))
-        share = {k: float(np.mean([abs(getattr(p, k) - getattr(t, k))
-                                   for p, t in zip(ps, true, strict=True)])) / base_mae[k]
-                 for k in RAW_CONTINUOUS}
+        share = {k: v / base_mae[k] for k, v in mae_by_param(ps, true, RAW_CONTINUOUS).items()}
         data[str(g)] = {"n_right": right, "mae_over_mean": share}
         rows.append(f"| {g:g} | {'yes' if lo <= g <= hi else 'no'} | {100 * right:.0f}% | "
                     + " | ".join(f"{v:.2f}" for v in share.values()) + " |")

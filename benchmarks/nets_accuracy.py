@@ -33,6 +33,20 @@ from ipm.params import (
 from ipm.photo import Photo
 
 
+def mae_by_param(pred: list, true: list, keys) -> dict[str, float]:
+    """Per parameter of ``keys``, the mean absolute error of ``pred`` against ``true`` (lists
+    of :class:`ipm.params.YarnParams`, in order)."""
+    return {k: float(np.mean([abs(getattr(p, k) - getattr(t, k))
+                              for p, t in zip(pred, true, strict=True)])) for k in keys}
+
+
+def baseline_mae(ens: Ensemble, true: list, pixel_size_mm: float, keys) -> dict[str, float]:
+    """Per parameter of ``keys``, the error of predicting the mean training label (stored
+    with each net, :meth:`Ensemble.mean_prediction`) for every yarn of ``true``."""
+    base = ens.mean_prediction(pixel_size_mm)
+    return {k: float(np.mean([abs(base[k] - getattr(t, k)) for t in true])) for k in keys}
+
+
 def central_view(photo: Photo, width_mm: float, height_mm: float) -> Photo:
     """The photo cut to its central ``width_mm`` x ``height_mm``."""
     h, w = photo.image.shape[:2]

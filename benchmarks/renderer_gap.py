@@ -21,6 +21,7 @@ import argparse
 import numpy as np
 
 from ipm.benchmarks.machine import markdown_header, publish
+from ipm.benchmarks.nets_accuracy import baseline_mae, mae_by_param
 from ipm.dataset import read_manifest
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.nets.ensemble import Ensemble
@@ -79,15 +80,13 @@ def main() -> None:
     for kind, ps in pred.items():
         right = float(np.mean([p.n == t.n for p, t in zip(ps, true, strict=True)]))
         bias = float(np.mean([p.n - t.n for p, t in zip(ps, true, strict=True)]))
-        mae = {k: float(np.mean([abs(getattr(p, k) - getattr(t, k))
-                                 for p, t in zip(ps, true, strict=True)]))
-               / PAPER_INTERVALS[k].width for k in RAW_CONTINUOUS}
+        mae = {k: v / PAPER_INTERVALS[k].width
+               for k, v in mae_by_param(ps, true, RAW_CONTINUOUS).items()}
         data[kind] = {"n_right": right, "n_bias": bias, "mae_share": mae}
         rows.append(f"| {kind} | {100 * right:.0f}% | {bias:+.2f} | "
                     + " | ".join(f"{100 * v:.1f}" for v in mae.values()) + " |")
-    base = ens.mean_prediction(records[0].pixel_size_mm)
-    base_mae = {k: float(np.mean([abs(base[k] - getattr(t, k)) for t in true]))
-                / PAPER_INTERVALS[k].width for k in RAW_CONTINUOUS}
+    base_mae = {k: v / PAPER_INTERVALS[k].width for k, v in
+                baseline_mae(ens, true, records[0].pixel_size_mm, RAW_CONTINUOUS).items()}
     data["predict the mean"] = {"mae_share": base_mae}
     rows.append("| predict the mean | | | "
                 + " | ".join(f"{100 * v:.1f}" for v in base_mae.values()) + " |")

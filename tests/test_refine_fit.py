@@ -519,13 +519,16 @@ def test_the_displayed_capture_is_the_photos_exposure_and_defocus(setup):
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
-    linear = Renderer(options=setup_options(setup)).render(preset("golden"), 5, 0.25, 8)
+    renderer = Renderer(options=setup_options(setup))
+    linear = renderer.render(preset("golden"), 5, 0.25, 8)
 
-    def photo_of(gain, sigma_px):
-        x = np.stack([gaussian_filter(linear[..., c] * gain, sigma_px, mode="nearest")
-                      for c in range(3)], axis=-1)
+    def srgb(x):  # the sRGB curve, written out
         x = np.clip(x, 0, 1)
         return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+
+    def photo_of(gain, sigma_px):
+        return srgb(np.stack([gaussian_filter(linear[..., c] * gain, sigma_px, mode="nearest")
+                              for c in range(3)], axis=-1))
 
     for gain, sigma_px in ((1.0, 0.0), (0.5, 1.5), (1.5, 4.0)):
         capture = matched_capture(photo_of(gain, sigma_px), linear, 0.04, setup=setup)
@@ -533,18 +536,16 @@ def test_the_displayed_capture_is_the_photos_exposure_and_defocus(setup):
         card = 1.0 if setup == "backlit" else gain
         assert capture.exposure_stops == pytest.approx(stops, abs=0.1), (gain, sigma_px)
         assert capture.backdrop_gain == pytest.approx(card, rel=0.07), (gain, sigma_px)
+        assert capture.blur_mm / 0.04 == pytest.approx(sigma_px, abs=0.1 + 0.05 * sigma_px), (
+            gain, sigma_px)
     if setup == "frontlit":  # a light card (the scene's albedo times 30) is matched in full
         from ipm.render.photometric import Photometric
 
-        light = Renderer(options=setup_options(setup)).render(
-            preset("golden"), 5, 0.25, 8, photometric=Photometric(backdrop_gain=30.0))
-        light = np.clip(light, 0, 1)
-        light = np.where(light <= 0.0031308, 12.92 * light, 1.055 * light ** (1 / 2.4) - 0.055)
+        light = srgb(renderer.render(preset("golden"), 5, 0.25, 8,
+                                     photometric=Photometric(backdrop_gain=30.0)))
         on_light = matched_capture(light, linear, 0.04, setup=setup)
         assert on_light.backdrop_gain == pytest.approx(30.0, rel=0.07)
         # lighter than any card the nets saw: said; the scene's own card: not
         assert "30 times as light" in card_warning(on_light, setup)
         assert card_warning(matched_capture(photo_of(1.0, 0.0), linear, 0.04, setup=setup),
                             setup) is None
-        assert capture.blur_mm / 0.04 == pytest.approx(sigma_px, abs=0.1 + 0.05 * sigma_px), (
-            gain, sigma_px)

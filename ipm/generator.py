@@ -17,7 +17,11 @@ Blender script settles a point, we follow it so that a parameter means what it m
   outermost instance on the rim).  Only the fiber level is jittered (``j_xy`` is a fiber
   parameter, and the paper uses "more structure on the ply level").
 * Helix (Eq. 6-9): ``theta(z) = 2 pi z / alpha_h + phi_0`` with ``phi_0 = arctan2(p_x, p_y)``
-  so that vertex 0 coincides with ``p`` under the ``(sin, cos)`` parametrisation.  Migration
+  so that vertex 0 coincides with ``p`` under the ``(sin, cos)`` parametrisation.  A level
+  above the fibers carries its template along the helix by arc length (the authors' script
+  bends each bundle with Blender's curve modifier): a fiber turns once per ``|alpha|`` mm of
+  its ply's own length, not of the yarn axis, which is ``sqrt(1 + (2 pi R_ply /
+  alpha_ply)^2)`` times shorter.  Migration
   as in the authors' script: the helix radius is scaled by ``1 + A cos(phi_m + v z)`` with
   ``A = max(0, j R)``, ``phi_m ~ U(0, 2 pi)`` and ``v ~ U(0, 2)`` rad/mm drawn once per
   fiber (Eq. 8 omits ``j``; Table 1 makes it the migration amplitude); only fibers migrate.
@@ -34,20 +38,25 @@ Blender script settles a point, we follow it so that a parameter means what it m
   always faces the centre.  ``mapping="global"`` is Zhao et al.'s shift orthogonal to the
   global axis (``e_1`` radial, ``e_2 = e_z x e_1`` in the xy plane), kept for comparison
   (paper Fig. 5).
-* Flyaways (Alg. 2), as in the authors' script.  Their number is ``g`` per 10 mm of yarn (the
-  script makes ``int(4 g)`` along a 40 mm yarn), so ``g`` means the same flyaway density
-  whatever the length generated.  A segment is found by arc length along a source fiber
-  (rejection sampling; one that cannot be found in 64 rounds is clipped to its fiber), its
-  first vertex the root.
-  Loops: length ``l_loop + 0.01 R``; the segment's x is halved about its root, then it is
-  pushed along the unit radial direction ``u`` of its last vertex by
-  ``o_i = 0.1 d sin(i pi / (J - 1)) u`` (``d`` in units of 0.1 mm, both ends stay put on the
-  radial path); ``d = d_mean + |d_std R|``.  4 % are long loops: ``2 l_loop`` long with
+* Flyaways (Alg. 2), as in the authors' script.  Their number is ``0.88 g`` per 10 mm of
+  ply: the script tries ``int(4 g)`` strips along its 40 mm fiber template and drops each
+  that runs past a fiber's end (the share kept is measured on the reference fibers);
+  ipm makes the kept ones, so ``g`` means the same density whatever the length generated.
+  A segment is found by arc length along a source fiber (rejection sampling; one that
+  cannot be found in 64 rounds is clipped to its fiber), its first vertex the root.
+  Loops: length ``l_loop + 0.01 R``; the segment's x is halved about its root, then its
+  ``J`` inner vertices are pushed along the unit radial direction ``u`` of its last vertex by
+  ``0.1 d sin(i pi / J) u``, ``i = 0 .. J - 1`` (``d`` in units of 0.1 mm, both ends stay
+  on the yarn); ``d = d_mean + |d_std R|``.  4 % are long loops: ``2 l_loop`` long with
   ``d = |2 d_mean + d_std R|`` (the script's ``N(2 d_mean, d_std)``; the absolute value keeps
   the rare negative draw from pushing a loop through the yarn).
   Hairs: length ``l_hair + 0.05 R`` (4 % are ``3 l_hair`` long); the segment is squeezed
-  along the axis about its root by ``1 / (1 + 1.5 s)``, mirrored in x about its root and
-  rotated by ``beta`` about the radial axis through its root.
+  along the axis about its root by ``1 / (1 + 1.5 s)``, mirrored in x about its root, and
+  every vertex after the root turned by ``beta`` about the unit radial direction of the
+  segment's far end, through the vertex after the root (turning about the root's own radial
+  direction instead stands hairs far further out than the script's).
+* Measured against the authors' fibers for four presets (``tests/test_reference_fibers.py``,
+  [the report](../benchmarks/results/reference_fibers.md)).
 """
 
 from __future__ import annotations
@@ -69,8 +78,10 @@ VERTICES_PER_TURN = 16
 SPACING_BOUNDS_MM = (0.02, 0.1)
 CIRCLE_PATTERN_MAX = 7
 FLYAWAY_TRIES = 64
-#: Flyaways per mm of yarn and unit of ``g`` (the authors' ``int(4 g)`` on 40 mm).
-FLYAWAYS_PER_MM_AND_G = 0.1
+#: Flyaways per mm of ply and unit of ``g``: the authors' script tries ``4 g`` strips on a
+#: 40 mm fiber template and drops each that runs past a fiber's end, so ``0.1 g`` per mm
+#: less the dropped share (measured on the reference fibers, benchmarks/results/).
+FLYAWAYS_PER_MM_AND_G = 0.1 * 0.88
 #: Unit of the loop amplitude ``d`` in mm, and the share and scale of long loops and hairs.
 LOOP_D_UNIT_MM = 0.1
 LONG_SHARE = 0.04
@@ -129,12 +140,20 @@ def instance_positions(level: Level, rng: np.random.Generator) -> np.ndarray:
     return p
 
 
+def arc_stretch(level: Level) -> float:
+    """Length of a turn of the level's helix centre line over its pitch: the template's ``z``
+    is arc length along that centre line, so it spans this many times the yarn axis."""
+    return math.sqrt(1 + (2 * math.pi * level.radius / level.pitch) ** 2)
+
+
 def twist(template: np.ndarray, level: Level, rng: np.random.Generator,
-          mapping: Mapping = "local") -> np.ndarray:
+          mapping: Mapping = "local", along_arc: bool = False) -> np.ndarray:
     """Map ``N`` copies of the template points (P, 3) onto helices: (N, P, 3).
 
     Each copy is squeezed along x by ``level.squeeze``, turned with the helix so its x axis
-    points away from the centre, and carried along the helix at the template point's height.
+    points away from the centre, and carried along the helix.  ``along_arc``: the template's
+    ``z`` is arc length along the helix centre line (a bundle carried along the helix, as
+    Blender's curve modifier does in the authors' script), else height on the axis.
     """
     pos = instance_positions(level, rng)
     n = len(pos)
@@ -146,6 +165,8 @@ def twist(template: np.ndarray, level: Level, rng: np.random.Generator,
         speed = rng.uniform(0, 2, n)[:, None]
 
     x, y, z = level.squeeze * template[:, 0], template[:, 1], template[:, 2]
+    if along_arc:
+        z = z / arc_stretch(level)
     k = 2 * np.pi / level.pitch  # d theta / dz
     theta = k * z[None, :] + phi0
     sin, cos = np.sin(theta), np.cos(theta)
@@ -182,16 +203,21 @@ def raw_yarn(levels: list[Level], rng: np.random.Generator, length: float = YARN
              mapping: Mapping = "local") -> tuple[np.ndarray, np.ndarray]:
     """Alg. 1: the raw yarn as (F, V, 3) fiber vertices, and (F,) ply index per fiber.
 
-    Every level maps vertex for vertex, so all fibers share the vertex count ``V``.
+    Every level maps vertex for vertex, so all fibers share the vertex count ``V``.  Above the
+    fibers a level's template ``z`` is arc length along its helix (a fiber turns once per
+    ``|alpha|`` mm of its ply, as in the authors' generator), so the fiber template is made
+    long enough that the finished yarn spans ``length`` mm of the axis.
     """
     spacing = vertex_spacing(levels)
-    v = int(math.ceil(length / spacing)) + 1
-    z = np.linspace(-length / 2, length / 2, v)
+    span = length * math.prod(arc_stretch(level) for level in levels[1:])
+    v = int(math.ceil(span / spacing)) + 1
+    z = np.linspace(-span / 2, span / 2, v)
     fibers = np.column_stack([np.zeros(v), np.zeros(v), z])[None]  # (1, V, 3)
     ply = np.zeros(1, dtype=np.int64)
     for depth, level in enumerate(levels):
         f = len(fibers)
-        fibers = twist(fibers.reshape(-1, 3), level, rng, mapping).reshape(level.count * f, v, 3)
+        fibers = twist(fibers.reshape(-1, 3), level, rng, mapping,
+                       along_arc=depth > 0).reshape(level.count * f, v, 3)
         # fibers of one ply share the instance index of the ply level; above it, copy k of a
         # template with P plies numbers its plies k P .. k P + P - 1
         inst = np.repeat(np.arange(level.count), f)
@@ -229,53 +255,87 @@ def _find_segments(cum: np.ndarray, lengths: np.ndarray, rng: np.random.Generato
     return fib, start, end
 
 
-def _rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
-    """3x3 rotation by ``angle`` about the unit vector ``axis`` (right-hand rule, Rodrigues)."""
-    kx = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+def _rotations_about(axes: np.ndarray, angle: float) -> np.ndarray:
+    """(K, 3, 3) rotations by ``angle`` about the unit vectors ``axes`` (K, 3) (right-hand
+    rule, Rodrigues)."""
+    kx = np.zeros((len(axes), 3, 3))
+    kx[:, 0, 1], kx[:, 0, 2], kx[:, 1, 2] = -axes[:, 2], axes[:, 1], -axes[:, 0]
+    kx -= kx.transpose(0, 2, 1)
     return np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
 
 
-def _unit_radial(point: np.ndarray) -> np.ndarray:
-    """The unit direction from the yarn axis to ``point`` in the xy plane (x on the axis)."""
-    radial = np.array([point[0], point[1], 0.0])
-    norm = np.linalg.norm(radial)
-    return radial / norm if norm > 1e-12 else np.array([1.0, 0.0, 0.0])
+def _unit_radials(points: np.ndarray) -> np.ndarray:
+    """(K, 3) unit directions from the yarn axis to ``points`` (K, 3) in the xy plane (x on
+    the axis)."""
+    radial = points * np.array([1.0, 1.0, 0.0])
+    norm = np.linalg.norm(radial, axis=1, keepdims=True)
+    return np.where(norm > 1e-12, radial / np.maximum(norm, 1e-12), [1.0, 0.0, 0.0])
+
+
+def _segments(points: np.ndarray, sizes: np.ndarray):
+    """Per vertex of segments laid end to end: its segment and its index in it; per segment
+    the offset of its first vertex."""
+    first = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    owner = np.repeat(np.arange(len(sizes)), sizes)
+    return owner, np.arange(len(points)) - first[owner], first
+
+
+def hairs(points: np.ndarray, sizes: np.ndarray, beta: float, s: float) -> np.ndarray:
+    """Hair flyaways from fiber segments laid end to end in ``points`` (``sizes`` vertices
+    each, at least two), each starting at its root on the yarn: squeezed along the axis by
+    ``1 / (1 + 1.5 s)`` and mirrored in x, both about the root, then every vertex after the
+    root turned by ``beta`` about the unit radial direction of the segment's far end, through
+    the vertex after the root (the authors' script)."""
+    owner, index, first = _segments(points, sizes)
+    root = points[first][owner]
+    out = points - root
+    out[:, 2] /= 1 + 1.5 * s
+    out[:, 0] *= -1
+    out += root
+    pivot = out[first + 1][owner]
+    turn = _rotations_about(_unit_radials(points[first + sizes - 1]), beta)[owner]
+    moved = pivot + np.einsum("kij,kj->ki", turn, out - pivot)
+    return np.where((index >= 1)[:, None], moved, out)
+
+
+def loops(points: np.ndarray, sizes: np.ndarray, d_mm: np.ndarray) -> np.ndarray:
+    """Loop flyaways from segments laid end to end: each segment's x halved about its first
+    vertex, then the arch ``d_mm sin(i pi / J) u`` added to its ``J`` inner vertices
+    (``i = 0 .. J - 1``) along the unit radial direction ``u`` of its last vertex (Eq. 10 as
+    the authors' script makes it; ``d_mm`` (K,) the arch heights in mm); both ends stay."""
+    owner, index, first = _segments(points, sizes)
+    out = points.copy()
+    out[:, 0] = out[first, 0][owner] + 0.5 * (out[:, 0] - out[first, 0][owner])
+    inner = np.maximum(sizes - 2, 1)[owner]
+    arch = np.where((index >= 1) & (index <= sizes[owner] - 2),
+                    np.sin((index - 1) * np.pi / inner), 0.0)
+    return out + (d_mm[owner] * arch)[:, None] * _unit_radials(points[first + sizes - 1])[owner]
 
 
 def hair(segment: np.ndarray, beta: float, s: float) -> np.ndarray:
-    """A hair flyaway from a fiber segment whose first vertex is the root on the yarn:
-    squeezed along the axis by ``1 / (1 + 1.5 s)`` and mirrored in x, both about the root,
-    then rotated by ``beta`` about the radial axis through the root."""
-    root = segment[0]
-    seg = segment - root
-    seg[:, 2] /= 1 + 1.5 * s
-    seg[:, 0] *= -1
-    return root + seg @ _rotation_about(_unit_radial(root), beta).T
+    """One hair flyaway (:func:`hairs`) from a (J, 3) segment whose first vertex is the root."""
+    return hairs(segment, np.array([len(segment)]), beta, s)
 
 
 def loop(segment: np.ndarray, d_mm: float) -> np.ndarray:
-    """A loop flyaway: the segment's x halved about its first vertex, then the arch
-    ``d_mm sin(i pi / (J - 1)) u`` added along the unit radial direction ``u`` of its last
-    vertex (Eq. 10 with the authors' unit vector; ``d_mm`` is the arch height in mm)."""
-    out = segment.copy()
-    out[:, 0] = out[0, 0] + 0.5 * (out[:, 0] - out[0, 0])
-    i = np.arange(len(out))
-    out += d_mm * np.sin(i * np.pi / (len(out) - 1))[:, None] * _unit_radial(out[-1])
-    return out
+    """One loop flyaway (:func:`loops`) of arch height ``d_mm`` from a (J, 3) segment."""
+    return loops(segment, np.array([len(segment)]), np.array([d_mm]))
 
 
-def flyaway_count(g: int, length: float) -> int:
-    """Number of flyaways on ``length`` mm of yarn: ``g`` per 10 mm (see the module notes)."""
-    return int(round(g * FLYAWAYS_PER_MM_AND_G * length))
+def flyaway_count(g: int, ply_length: float) -> int:
+    """Number of flyaways on ``ply_length`` mm of ply: ``g`` per 10 mm less the strips the
+    authors' script drops (see the module notes)."""
+    return int(round(g * FLYAWAYS_PER_MM_AND_G * ply_length))
 
 
 def flyaways(params: YarnParams, fibers: np.ndarray, rng: np.random.Generator,
              length: float = YARN_LENGTH_MM):
-    """Alg. 2: flyaways copied from the raw yarn's fibers, ``g`` per 10 mm of yarn.
+    """Alg. 2: flyaways copied from the raw yarn's fibers (see the module notes).
 
-    Returns a list of (J, 3) polylines, their kinds and their source fibers.
+    Returns their polylines laid end to end (P, 3), the vertices of each, their kinds and
+    their source fibers.
     """
-    count = flyaway_count(params.g, length)
+    count = flyaway_count(params.g, length * arc_stretch(levels_of(params)[1]))
     is_loop = rng.random(count) < params.p
     is_long = rng.random(count) < LONG_SHARE
     noise = rng.standard_normal(count)
@@ -289,15 +349,16 @@ def flyaways(params: YarnParams, fibers: np.ndarray, rng: np.random.Generator,
     spread = params.d_std * rng.standard_normal(count)
     d = np.where(is_long, np.abs(LONG_LOOP_FACTOR * params.d_mean + spread),
                  params.d_mean + np.abs(spread))
-    curves = []
-    for k in range(count):
-        sl = slice(start[k], end[k] + 1) if end[k] > start[k] else slice(start[k], end[k] - 1
-                                                                          if end[k] else None, -1)
-        seg = fibers[fib[k], sl]
-        curves.append(loop(seg, LOOP_D_UNIT_MM * d[k]) if is_loop[k]
-                      else hair(seg, params.beta, params.s))
+    forward = end >= start
+    sizes = np.abs(end - start) + 1
+    owner, index, _ = _segments(np.empty((sizes.sum(), 0)), sizes)
+    points = fibers[fib[owner], start[owner] + np.where(forward[owner], index, -index)]
+    shaped = np.empty_like(points)
+    at_loop = is_loop[owner]
+    shaped[at_loop] = loops(points[at_loop], sizes[is_loop], LOOP_D_UNIT_MM * d[is_loop])
+    shaped[~at_loop] = hairs(points[~at_loop], sizes[~is_loop], params.beta, params.s)
     kinds = np.where(is_loop, FiberKind.LOOP, FiberKind.HAIR).astype(np.uint8)
-    return curves, kinds, fib
+    return shaped, sizes, kinds, fib
 
 
 def generate(params: YarnParams, seed: int, length: float = YARN_LENGTH_MM,
@@ -311,10 +372,10 @@ def generate(params: YarnParams, seed: int, length: float = YARN_LENGTH_MM,
     """
     rng = np.random.default_rng(seed)
     core, core_ply = raw_yarn(levels_of(params), rng, length, mapping)
-    curves, kinds, source = flyaways(params, core, rng, length)
+    curves, curve_sizes, kinds, source = flyaways(params, core, rng, length)
     f, v = core.shape[:2]
-    sizes = np.concatenate([np.full(f, v), [len(c) for c in curves]])
-    points = np.concatenate([core.reshape(-1, 3), *curves]).astype(np.float32)
+    sizes = np.concatenate([np.full(f, v), curve_sizes])
+    points = np.concatenate([core.reshape(-1, 3), curves]).astype(np.float32)
     count = len(sizes)
     return FiberSet(
         points=points,

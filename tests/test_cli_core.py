@@ -1,6 +1,7 @@
 """`ipm sample` / `ipm curves` as a user runs them, bad input included."""
 
 import json
+import math
 import subprocess
 import sys
 
@@ -23,7 +24,9 @@ def test_sample_preset_and_curves(tmp_path):
     assert json.loads((tmp_path / "p.json").read_text())["n"] == 3
     r = ipm("curves", tmp_path / "p.json", "-o", tmp_path / "y.npz", "--seed", 1)
     assert r.returncode == 0, r.stderr
-    flyaways = round(123 * YARN_LENGTH_MM / 10)  # golden's g = 123 per 10 mm
+    g = preset("golden")  # g per 10 mm of ply, less the authors' dropped strips (0.88)
+    flyaways = round(0.88 * g.g * YARN_LENGTH_MM * math.hypot(1, 2 * math.pi * g.R_ply
+                                                              / g.alpha_ply) / 10)
     assert FiberSet.load_npz(tmp_path / "y.npz").num_fibers == 3 * 43 + flyaways
     r = ipm("curves", tmp_path / "p.json", "-o", tmp_path / "y.txt", "--format", "mitsuba")
     blocks = (tmp_path / "y.txt").read_text().count("\n\n") + 1  # blank lines between fibers

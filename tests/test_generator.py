@@ -64,7 +64,10 @@ def test_counts_kinds_and_radii(generated):
     for name, p, fs in generated:
         assert (fs.kind == FiberKind.CORE).sum() == p.n * p.m, name
         fly = fs.kind != FiberKind.CORE
-        count = round(p.g * YARN_LENGTH_MM / 10)  # g per 10 mm of yarn, as the authors' script
+        # g per 10 mm of ply (less the authors' dropped strips: 0.88), the ply's length from
+        # its helix: its arc over the yarn's length
+        ply_length = YARN_LENGTH_MM * math.hypot(1, 2 * math.pi * p.R_ply / p.alpha_ply)
+        count = round(0.88 * p.g * ply_length / 10)
         assert fly.sum() == count, name
         loops = (fs.kind == FiberKind.LOOP).sum()
         assert abs(loops - count * p.p) <= 4 * np.sqrt(count * p.p * (1 - p.p)), name
@@ -97,7 +100,9 @@ def test_loop_arches_d_mm_out_along_the_radial_direction():
     assert along.max() == pytest.approx(0.444, rel=1e-3)
     assert np.allclose(push - along[:, None] * u, 0.0, atol=1e-9)  # only radial, z untouched
     assert np.allclose(out[[0, -1]], seg[[0, -1]])  # a straight segment keeps both ends
-    assert np.argmax(along) == len(seg) // 2
+    # the arch sin(i pi / J) over the J inner vertices, i = 0 .. J - 1 (the authors' indexing)
+    inner = len(seg) - 2
+    assert np.allclose(along[1:-1], 0.444 * np.sin(np.arange(inner) * np.pi / inner))
 
 
 def test_loop_halves_x_about_its_first_vertex():
@@ -108,22 +113,25 @@ def test_loop_halves_x_about_its_first_vertex():
     assert np.allclose(out[:, 1:], seg[:, 1:])
 
 
-def test_hair_is_squeezed_mirrored_and_turned_by_beta_about_its_radial_axis():
-    root = np.array([0.0, 0.5, -2.0])  # radial axis +y
+def test_hair_is_squeezed_mirrored_and_turned_by_beta_about_its_far_end_radial_axis():
+    """The authors' hair: squeeze z and mirror x about the root, then turn every vertex after
+    the root by beta about the far end's radial direction, through the vertex after the
+    root."""
+    root = np.array([0.0, 0.5, -2.0])
     seg = straight_segment(root, length=3.0)
-    seg[:, 0] += np.linspace(0.0, 0.1, len(seg))  # leans 0.1 mm towards +x
+    seg[:, 0] += 0.1 * np.sin(np.linspace(0.0, np.pi, len(seg)))  # bulges to +x, ends on +y
     beta, s = 0.7, 0.4
     out = hair(seg, beta, s)
-    d = out - root
-    assert np.allclose(d[:, 1], 0.0, atol=1e-9)  # a turn about the radial axis keeps y
-    # undo the turn about +y by beta, then the mirror in x, then the squeeze of z
+    made = seg - root
+    made[:, 0] *= -1
+    made[:, 2] /= 1 + 1.5 * s
+    assert np.allclose(out[:2] - root, made[:2], atol=1e-9)  # root and pivot stay
+    d = out - out[1]
+    assert np.allclose(d[:, 1], 0.0, atol=1e-9)  # a turn about the radial axis +y keeps y
+    # undo the right-handed turn about +y by beta: (x, z) -> (c x - s z, s x + c z)
     c, sn = math.cos(beta), math.sin(beta)
     x, z = c * d[:, 0] - sn * d[:, 2], sn * d[:, 0] + c * d[:, 2]
-    assert np.allclose(-x, seg[:, 0] - root[0], atol=1e-9)
-    assert np.allclose(z * (1 + 1.5 * s), seg[:, 2] - root[2], atol=1e-9)
-    chord = d[-1] / np.linalg.norm(d[-1])
-    lean = math.atan2(0.1, 3.0 / (1 + 1.5 * s))  # mirrored to -x, then turned towards +x
-    assert math.acos(chord[2]) == pytest.approx(beta - lean, abs=1e-9)
+    assert np.allclose(np.column_stack([x, z])[1:], (made - made[1])[1:, [0, 2]], atol=1e-9)
 
 
 def test_long_flyaways_and_loop_heights_follow_the_authors_distributions():

@@ -5,8 +5,8 @@ rule, so that a change of the rule is measured on fits already made.  Per captur
 the reports' photos are also counted together (issue 22's calibration: 30 of ipm's renders
 and 30 of another renderer's, the share within 70-90% for every parameter).
 
-    python -m ipm.benchmarks.interval_coverage docs/compare:data/test \\
-        docs/compare-cycles-frontlit:data/cycles-frontlit \\
+    python -m ipm.benchmarks.interval_coverage /tmp/compare:data/test \\
+        /tmp/compare-cycles-frontlit:data/cycles-frontlit \\
         --out benchmarks/results/interval_coverage.md
 """
 

@@ -12,7 +12,7 @@ compared with the photo's stripe period from the net-free yardstick
 and the yardstick stands in for it.
 
     python -m ipm.benchmarks.pitch_profile --photos ../shared/real-yarns --pixel-size 0.0021 \\
-        --fits docs/real-photos-material/fits.jsonl --out benchmarks/results/pitch_profile_real.md
+        --fits /tmp/real-photos/fits.jsonl --out benchmarks/results/pitch_profile_real.md
 
 On a labelled set (``--data``, an ``ipm generate`` dataset or a Cycles test set, whose
 truth is known) the sweep starts where ``ipm fit`` starts: the nets' guess of each photo,

@@ -10,15 +10,18 @@ photo and its render are measured alike.
 * Hairiness: fibers per mm of yarn that reach :data:`HAIR_SHOWN` mm beyond the core's edge
   (:func:`ipm.benchmarks.photo_measures.hairiness`), the render's over the photo's.
 
-Writes ``index.md`` (the table and the medians), ``fits.jsonl`` (resumable, as ``ipm
-compare``; ``settings.json`` holds the run's flags, and a folder of other flags is refused
-rather than resumed), ``renders/`` and ``contact_sheet.png`` (photo | refined render, every
+Writes the summary page (the table and the medians) to ``--out``
+(``benchmarks/results/real_photos.md``), and the heavy outputs to the folder ``--work``,
+outside the repository: ``fits.jsonl`` (resumable, as ``ipm compare``; ``settings.json``
+holds the run's flags, and a folder of other flags is refused rather than resumed),
+``renders/``, ``measures.json`` and ``contact_sheet.png`` (photo | refined render, every
 photo).  The renders are in the photo's capture (its panel level and defocus,
 :func:`ipm.refine.capture.matched_capture`, recorded in ``captures.json``), as ``ipm fit``
-shows them, and measured so.  A change of the code is not seen: refit into a new folder after one.
+shows them, and measured so.  A change of the code is not seen: refit into a new ``--work``
+folder after one.
 
     python -m ipm.benchmarks.real_photos --photos ../shared/real-yarns --pixel-size 0.0021 \\
-        --out docs/real-photos
+        --work /tmp/real-photos
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import argparse
 import json
 import re
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +42,9 @@ from ipm.dataset import Record, photo_files
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.photo import write_png
 from ipm.refine.capture import in_capture, matched_capture
+
+#: Where the summary page goes by default (the heavy outputs go to ``--work``).
+PAGE = Path(__file__).parent / "results" / "real_photos.md"
 
 #: The photos in the contact sheet are the Minho dataset's (``../shared/real-yarns``).
 ATTRIBUTION = ("The photos: \"Yarn hairiness - loop & protruding fibers dataset\", University "
@@ -96,7 +103,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--photos", type=Path, required=True)
     ap.add_argument("--pixel-size", type=float, required=True, help="mm per photo pixel")
-    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--out", type=Path, default=PAGE, help="the summary page (markdown)")
+    ap.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "ipm-real-photos",
+                    help="folder for the fits, renders and contact sheet (resumable; keep it "
+                    "outside the repository)")
     ap.add_argument("--models", type=Path, default=None, help="default: the shipped backlit")
     ap.add_argument("--budget", type=int, default=None, help="evaluations per search")
     ap.add_argument("--params", default=None, help="the searched parameters and stages, as "
@@ -129,30 +139,31 @@ def main() -> None:
                            **({} if args.budget is None else {"budget": args.budget}))
     options = FitOptions(search=search, ply_counts=args.ply_counts, match_size=args.match_size,
                          outside=args.params is None and not args.no_prior)
-    args.out.mkdir(parents=True, exist_ok=True)
+    args.work.mkdir(parents=True, exist_ok=True)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
     settings = {"photos": str(args.photos), "pixel_size_mm": args.pixel_size,
                 "models": str(args.models or "shipped"), "budget": args.budget,
                 "params": args.params, "polish": args.polish, "ply_counts": args.ply_counts,
                 "prior": not args.no_prior, "match_size": args.match_size}
     try:  # before resuming the fits in the folder
-        check_same_settings(args.out / "settings.json", settings, "fits")
+        check_same_settings(args.work / "settings.json", settings, "fits")
     except UserError as e:
         raise SystemExit(f"error: {e}") from None
-    write_text(args.out / "settings.json", json.dumps(settings, indent=2) + "\n")
-    rows = fit_all(args.out / "fits.jsonl", records, lambda i, photo: ensemble.predict(photo),
+    write_text(args.work / "settings.json", json.dumps(settings, indent=2) + "\n")
+    rows = fit_all(args.work / "fits.jsonl", records, lambda i, photo: ensemble.predict(photo),
                    options, None if args.no_prior else (
                        lambda photo: ensemble.sigma(photo.pixel_size_mm)),
                    progress=lambda done, total: print(f"fits {done}/{total}", flush=True),
                    count_prior_of=ensemble.ply_count_probabilities)
     plies = readme_ply_counts(args.photos)
     renderer = Renderer(options=setup_options("backlit"))
-    (args.out / "renders").mkdir(exist_ok=True)
-    captures_file = args.out / "captures.json"
+    (args.work / "renders").mkdir(exist_ok=True)
+    captures_file = args.work / "captures.json"
     captures = json.loads(captures_file.read_text()) if captures_file.is_file() else {}
     table, panels = [], []
     for f, row in zip(files, rows, strict=True):
         photo = gray(str(f))
-        target = args.out / "renders" / f.name
+        target = args.work / "renders" / f.name
         if not target.is_file() or f.name not in captures:
             refined = YarnParams.from_dict(row["refined"])
             linear = render_over(renderer, refined, photo.shape, args.pixel_size,
@@ -162,7 +173,7 @@ def main() -> None:
             write_png(target, in_capture(linear, capture, MEASURE_PITCH_MM))
             captures[f.name] = {"exposure_stops": capture.exposure_stops,
                                 "blur_mm": capture.blur_mm}
-            write_text(args.out / "captures.json", json.dumps(captures, indent=2) + "\n")
+            write_text(args.work / "captures.json", json.dumps(captures, indent=2) + "\n")
         render = gray(str(target))
         d_photo, period_photo = measures(photo, args.pixel_size)
         d_render, _ = measures(render, MEASURE_PITCH_MM)
@@ -183,7 +194,7 @@ def main() -> None:
              zip(panels[::2], panels[1::2] + [np.ones_like(panels[0])] * (len(panels) % 2),
                  strict=False)]
     sheet = np.vstack([np.vstack([p, np.ones((8, p.shape[1]))]) for p in pairs])
-    write_png(args.out / "contact_sheet.png", np.repeat(sheet[..., None], 3, axis=2))
+    write_png(args.work / "contact_sheet.png", np.repeat(sheet[..., None], 3, axis=2))
 
     two = [t for t in table if t["plies_readme"] is not None]
     core = np.nanmedian([t["core_rel"] for t in table])
@@ -197,7 +208,7 @@ def main() -> None:
                              "numpy", "torch", "mitsuba"),
              ATTRIBUTION, "",
              f"{len(table)} photos at {args.pixel_size:g} mm per pixel "
-             f"([how it was estimated](../real-pixel-size.md)); nets `{ensemble.folder}`.", "",
+             f"([how it was estimated](real_pixel_size.md)); nets `{ensemble.folder}`.", "",
              f"- Core diameter, render against photo: median relative difference "
              f"**{100 * core:.0f}%** (target under 10%).",
              f"- Ply-stripe period, the fit's alpha_ply / n against the photo's: median "
@@ -214,7 +225,7 @@ def main() -> None:
              "at the yarn); panel level, median "
              f"{np.median([c['exposure_stops'] for c in captures.values()]):+.2f} stops from "
              "the scene's.", "",
-             "![photo | refined render, every photo](contact_sheet.png)", "",
+             f"Photo | refined render, every photo: `{args.work / 'contact_sheet.png'}`.", "",
              "| photo | n (nets) | n (fit) | README | core photo (mm) | core render (mm) | "
              "diff | period photo (mm) | alpha_ply / n (mm) | diff | "
              f"hairs/mm at {' / '.join(f'{d:g}' for d in HAIR_SHOWN)} mm, photo | render |",
@@ -227,8 +238,8 @@ def main() -> None:
                      f"{100 * t['period_rel']:.0f}% | "
                      + " / ".join(f"{h:.1f}" for h in t["hairs_photo"]) + " | "
                      + " / ".join(f"{h:.1f}" for h in t["hairs_render"]) + " |")
-    publish("\n".join(lines) + "\n", str(args.out / "index.md"))
-    (args.out / "measures.json").write_text(json.dumps(table, indent=2) + "\n")
+    publish("\n".join(lines) + "\n", str(args.out))
+    (args.work / "measures.json").write_text(json.dumps(table, indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ taken), and the flyaways' width in pixels is measured by
 than 100 skeleton pixels are left out.  Writes the table and the estimate the other reports
 use.
 
-    python -m ipm.benchmarks.real_pixel_size --out docs/real-pixel-size.md
+    python -m ipm.benchmarks.real_pixel_size --out benchmarks/results/real_pixel_size.md
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from ipm.benchmarks.photo_measures import (
     yarn_signal,
 )
 
-COMMAND = "python -m ipm.benchmarks.real_pixel_size --out docs/real-pixel-size.md"
+COMMAND = "python -m ipm.benchmarks.real_pixel_size --out benchmarks/results/real_pixel_size.md"
 FIBER_UM = (12.0, 16.0, 20.0)
 MIN_SKELETON = 100
 REAL = Path(__file__).resolve().parent.parent.parent / "shared" / "real-yarns"

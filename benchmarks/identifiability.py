@@ -18,7 +18,8 @@ pitch, compared with the photo's by those nets' readings (groups ``detail_net_*`
 :class:`ipm.refine.objective.Detail`); the photos must be as fine as the detail nets
 (``data/test-full``, 0.01 mm).
 
-    python -m ipm.benchmarks.identifiability --data data/test --yarns 6 --out benchmarks/results/identifiability_frontlit.md
+    python -m ipm.benchmarks.identifiability --data data/test --yarns 6 \\
+        --out benchmarks/results/identifiability_frontlit.md
 """
 
 from __future__ import annotations

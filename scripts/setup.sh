@@ -4,7 +4,7 @@
 #    LLVM 14 is refused);
 #  - torch/torchvision pinned first, so pip takes the build this machine has on disk instead
 #    of downloading gigabytes;
-#  - ipm itself, editable, with the test tools.
+#  - ipm itself, editable, with the test and docs tools (pytest, ruff, mkdocs).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SUDO=""

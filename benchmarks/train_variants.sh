@@ -5,7 +5,7 @@
 # by default) on the same data as the shipped ensemble, for `ipm bench` (its --variants
 # folder).  The real set of the adapted variants is the 24 backlit photos (the only
 # unlabelled photos we have; inverted, at their measured 0.0021 mm per pixel,
-# docs/real-pixel-size.md).  Only the
+# benchmarks/results/real_pixel_size.md).  Only the
 # raw-yarn net of each is trained: the paper trains the flyaway net with L_regress alone in
 # every variant, so it is the ensemble's flyaway net.  Two one-thread processes side by side
 # (the two cores of the reference machine).

@@ -5,7 +5,7 @@ checks), ipm averaged over three fiber seeds; with ``--figure``, both rendered i
 scene at the same pixel size, the authors' left, ipm's right.
 
     python -m ipm.benchmarks.reference_fibers --out benchmarks/results/reference_fibers.md \\
-        --figure docs/figures/reference_flyaways.png
+        --figure docs/figures/reference_flyaways.jpg
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +24,7 @@ from ipm.generator import generate
 from ipm.params import YarnParams
 
 COMMAND = ("python -m ipm.benchmarks.reference_fibers --out "
-           "benchmarks/results/reference_fibers.md --figure docs/figures/reference_flyaways.png")
+           "benchmarks/results/reference_fibers.md --figure docs/figures/reference_flyaways.jpg")
 ROOT = Path(__file__).resolve().parents[1]
 MEASURES = ("fiber_pitch", "ply_pitch", "core_p95", "reach", "beyond", "per_10mm")
 #: Scale of the figure's renders (0.0167 mm per pixel) and the length of yarn shown (mm).
@@ -80,7 +81,7 @@ def figure(folder: Path, names: list[str], out: Path) -> None:
     sheet = np.concatenate([np.pad(r, ((0, 6), (0, 0), (0, 0)), constant_values=255)
                             for r in rows])
     out.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(sheet).save(out)
+    Image.fromarray(sheet).save(out, quality=90)
 
 
 def main() -> None:
@@ -110,7 +111,8 @@ def main() -> None:
             "0.8-1.25, density within 15%.\n\n" + "\n".join(rows) + "\n")
     if args.figure:
         figure(folder, list(test.PRESETS), Path(args.figure))
-        text += f"\n![the authors' fibers and ipm's, rendered alike]({Path(args.figure)})\n"
+        link = os.path.relpath(args.figure, Path(args.out).parent if args.out else ".")
+        text += f"\n![the authors' fibers and ipm's, rendered alike]({link})\n"
     publish(text, args.out, data)
 
 

@@ -13,7 +13,7 @@ import posixpath
 import re
 from pathlib import Path
 
-from mkdocs.structure.files import File
+from mkdocs.structure.files import File, InclusionLevel
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The repository pages outside docs/ that the guide may link.
@@ -28,7 +28,8 @@ def included() -> set[str]:
 
 def on_files(files, config):
     for rel in sorted(included()):
-        files.append(File.generated(config, PREFIX + rel, abs_src_path=str(ROOT / rel)))
+        files.append(File.generated(config, PREFIX + rel, abs_src_path=str(ROOT / rel),
+                                    inclusion=InclusionLevel.NOT_IN_NAV))
     return files
 
 

@@ -51,8 +51,8 @@ def flyaways(name: str = "golden", seed: int = 1) -> None:
     """The paper's Fig. 6 (flyaway generation) on a real segment of ``name``, and the whole
     yarn's flyaways, both as distance from the yarn axis against z (a side view in which
     "how far out" reads directly): a) the copied fiber segment, b) the hair squeezed along
-    the axis and mirrored about its root, c) turned by beta about the radial axis, d) the
-    loop (x halved, arch 0.1 d mm); right: every flyaway of the yarn."""
+    the axis and mirrored about its root, c) turned by beta about the far end's radial axis,
+    d) the loop (x halved, arch 0.1 d mm); right: every flyaway of the yarn."""
     import matplotlib
 
     matplotlib.use("Agg")

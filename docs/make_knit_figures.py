@@ -2,7 +2,6 @@
 make_figures.py):
 
 * ``knit_patches.png``: knit and purl patches (8 x 6) of three presets;
-* ``knit_closeup.png``: the yarn where a leg crosses the head below it, close up;
 * ``edits.png``: the paper's editing figure made with ``ipm edit``: golden, its ply twist
   pitch halved, its flyaways doubled, both, as yarns and as knitted patches.
 
@@ -22,7 +21,6 @@ from ipm.photo import linear_to_srgb
 from ipm.presets import preset
 from ipm.render.patch import patch_frame, render_patch
 from ipm.render.renderer import Renderer
-from ipm.render.scene import Frame
 
 OUT = Path(__file__).parent / "figures"
 SPP = 16
@@ -58,10 +56,6 @@ def main() -> None:
         OUT / "knit_patches.png")
 
     p = preset("golden")
-    patch = knit_patch(p, "knit", 4, 4, seed=0)
-    d = patch.diameter
-    close = Frame(800, 800, 4.5 * d / 800)  # a 4.5 D square around the patch's centre
-    to8(render_patch(renderer, patch, p.color, close, 64)).save(OUT / "knit_closeup.png")
 
     edits = {"golden": [], "alpha_ply=*0.5": ["alpha_ply=*0.5"], "g=*2": ["g=*2"],
              "alpha_ply=*0.5, g=*2": ["alpha_ply=*0.5", "g=*2"]}
@@ -79,7 +73,7 @@ def main() -> None:
         out.paste(knit, (w + 12, y))
         draw.text((12, y + 64), label, fill=(255, 255, 255))
     out.save(OUT / "edits.png")
-    print(OUT / "knit_patches.png", OUT / "knit_closeup.png", OUT / "edits.png")
+    print(OUT / "knit_patches.png", OUT / "edits.png")
 
 
 if __name__ == "__main__":

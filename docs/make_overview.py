@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from PIL import Image, ImageDraw
+from PIL import Image, ImageDraw, ImageFont
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "docs" / "figures"
@@ -25,8 +25,10 @@ GAP = 6
 
 def labelled(image: Image.Image, text: str) -> Image.Image:
     draw = ImageDraw.Draw(image)
-    draw.rectangle([0, 0, 8 + 6 * len(text), 16], fill=(255, 255, 255))
-    draw.text((4, 2), text, fill=(0, 0, 0))
+    font = ImageFont.load_default(size=15)
+    left, top, right, bottom = draw.textbbox((6, 4), text, font=font)
+    draw.rectangle([0, 0, right + 6, bottom + 4], fill=(255, 255, 255))
+    draw.text((6, 4), text, fill=(0, 0, 0), font=font)
     return image
 
 

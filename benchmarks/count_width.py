@@ -3,9 +3,9 @@
 the nets' range and searches its thickness first (``FitOptions.outside``), and within which
 a backlit fit chooses its ply count (the choice reads the core's outline at the yarn's
 thickness; where the nets' thickness is far from the photo's, it misread the count:
-docs/real-photos-count).  Per photo, :func:`ipm.refine.fit.width_ratio` of the nets' guess
-in the photo's setup, before its fiber colour is matched to the photo, as ``ipm fit`` decides
-the switch.
+docs/real-photos-count at cc59bd2).  Per photo, :func:`ipm.refine.fit.width_ratio` of the
+nets' guess in the photo's setup, before its fiber colour is matched to the photo, as ``ipm
+fit`` decides the switch.
 
     python -m ipm.benchmarks.count_width --data data-backlit/val --data data-backlit/test \\
         --data data/cycles-backlit --photos ../shared/real-yarns --pixel-size 0.0021 \\

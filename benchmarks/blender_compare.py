@@ -21,7 +21,7 @@ Cycles measure (a dense yarn is noisier and slower in both renderers, so pooling
 the pooled noise, which the dense yarns dominate, against a median time).
 
     python -m ipm.benchmarks.blender_compare --blender-python /opt/bpyenv/bin/python
-        [--yarns 6] [--figure docs/figures/cycles_vs_ipm.png]
+        [--yarns 6] [--figure /tmp/cycles_vs_ipm.png]
         [--out benchmarks/results/blender_compare.md]
 """
 
@@ -46,7 +46,7 @@ from ipm.render import scene as S
 from ipm.render.renderer import Renderer, world_curves
 
 COMMAND = ("python -m ipm.benchmarks.blender_compare --blender-python /opt/bpyenv/bin/python "
-           "--figure docs/figures/cycles_vs_ipm.png --out benchmarks/results/blender_compare.md")
+           "--out benchmarks/results/blender_compare.md")
 SCALE = 0.4
 CYCLES_SAMPLES = 64
 #: Sample counts the multijitter sampler takes as they are (products of two near-equal

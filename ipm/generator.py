@@ -230,6 +230,8 @@ def _find_segments(cum: np.ndarray, lengths: np.ndarray, rng: np.random.Generato
 
     cum: (F, V) arc length along each fiber.  Returns fiber, start and end vertex per
     flyaway (start is the root; end may be below start: the chain was followed backwards).
+    Each search reads its fiber's row in place (no copy per flyaway), so memory stays
+    linear in the yarn's length.
     """
     f_count, v = cum.shape
     g = len(lengths)
@@ -241,12 +243,12 @@ def _find_segments(cum: np.ndarray, lengths: np.ndarray, rng: np.random.Generato
         f = rng.integers(f_count, size=len(todo))
         s = rng.integers(v, size=len(todo))
         forward = rng.random(len(todo)) < 0.5
-        c = cum[f]
-        target = np.where(forward, c[np.arange(len(todo)), s] + lengths[todo],
-                          c[np.arange(len(todo)), s] - lengths[todo])
-        idx = np.array([np.searchsorted(row, t) for row, t in zip(c, target, strict=True)])
+        at_s = cum[f, s]
+        target = np.where(forward, at_s + lengths[todo], at_s - lengths[todo])
+        idx = np.array([np.searchsorted(cum[fi], t) for fi, t in zip(f, target, strict=True)],
+                       dtype=np.int64)
         e = np.where(forward, idx, idx - 1)
-        ok = (target <= c[:, -1]) & (target >= 0) & (np.abs(e - s) >= 2)
+        ok = (target <= cum[f, -1]) & (target >= 0) & (np.abs(e - s) >= 2)
         fib[todo[ok]], start[todo[ok]], end[todo[ok]] = f[ok], s[ok], e[ok]
         todo = todo[~ok]
     if len(todo):  # longer than any fiber chain we tried: clip to the fiber

@@ -21,7 +21,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
@@ -52,20 +52,33 @@ class Calibration:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Calibration:
-        """Read a calibration file; a file that is not one is a one-line error."""
+        """Read a calibration file; a file that is not one, or a field of the wrong type
+        (``true`` is not a number), is a one-line error naming the field."""
+        from ipm.io import check_regular_file
+
+        check_regular_file(path, "calibration file")
+        make = "make one with `ipm calibrate ruler.png -o calib.json`"
         try:
             d = json.loads(open(path, encoding="utf-8").read())
-            if d.pop("format", None) != FORMAT:
-                raise ValueError
-            cal = cls(**d)
-            if not (math.isfinite(cal.pixel_size_mm) and cal.pixel_size_mm > 0):
-                raise ValueError
-            return cal
-        except FileNotFoundError:
-            raise UserError(f"{path}: no such calibration file") from None
-        except (ValueError, TypeError, OSError):
-            raise UserError(f"{path} is not an ipm calibration file "
-                            "(make one with `ipm calibrate ruler.png -o calib.json`)") from None
+        except (ValueError, OSError):
+            d = None
+        if not isinstance(d, dict) or d.pop("format", None) != FORMAT:
+            raise UserError(f"{path} is not an ipm calibration file ({make})")
+        for name in ("pixel_size_mm", "tick_period_px", "angle_deg", "tick_mm", "source"):
+            if name not in d:
+                raise UserError(f"{path}: field {name} is missing ({make})")
+            v = d[name]
+            ok = (isinstance(v, str) if name == "source" else
+                  isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                  and (v > 0 or name == "angle_deg"))
+            if not ok:
+                kind = "text" if name == "source" else ("a number" if name == "angle_deg"
+                                                        else "a positive number")
+                raise UserError(f"{path}: field {name} must be {kind}, got {json.dumps(v)}")
+        unknown = sorted(set(d) - {f.name for f in fields(cls)})
+        if unknown:
+            raise UserError(f"{path}: unknown field(s) {', '.join(unknown)} ({make})")
+        return cls(**d)
 
 
 def _peak(power: np.ndarray, i: int, j: int) -> tuple[float, float]:
@@ -94,7 +107,7 @@ def tick_period(gray: np.ndarray) -> tuple[float, float, float, float, float]:
     fx = np.fft.rfftfreq(fw)[None, :]
     band = (np.hypot(fy, fx) >= MIN_TICKS / max(h, w)) & (np.hypot(fy, fx) <= 1 / MIN_PERIOD_PX)
     if not band.any():
-        raise UserError("the image is too small to hold a scale")
+        raise UserError(f"the image ({w}x{h} px) is too small to hold a scale")
     masked = np.where(band, power, 0.0)
 
     def near(f_y: float, f_x: float, spectrum: np.ndarray = masked) -> tuple[float, int, int]:
@@ -129,7 +142,10 @@ def tick_period(gray: np.ndarray) -> tuple[float, float, float, float, float]:
 
 def calibrate(gray: np.ndarray, source: str, tick_mm: float = 1.0) -> Calibration:
     """The pixel size of a photo of a scale with ticks ``tick_mm`` apart."""
-    period, angle, ratio, between, harmonic = tick_period(gray)
+    try:
+        period, angle, ratio, between, harmonic = tick_period(gray)
+    except UserError as e:
+        raise UserError(f"{source}: {e}") from None
     extent = max(gray.shape)
     if (ratio < MIN_PEAK_RATIO or between > MAX_BETWEEN or harmonic < MIN_HARMONIC
             or not MIN_PERIOD_PX <= period <= extent / MIN_TICKS):

@@ -14,10 +14,30 @@ import typer
 from ipm.errors import UserError
 from ipm.io import check_not_inputs, check_output, write_text
 from ipm.params import YARN_HELP
+from ipm.render.commands import ForceOpt
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
-                  rich_markup_mode="markdown",
+                  rich_markup_mode=None,
                   help="Fiber-level procedural yarn models from one macro photo.")
+
+
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            typer.echo(f"ipm {version('ipm')}")
+        except PackageNotFoundError:
+            typer.echo("ipm (not installed: run from a source tree)")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                          help="print ipm's version and exit")] = False,
+) -> None:
+    """Fiber-level procedural yarn models from one macro photo."""
 
 
 @app.command()
@@ -38,12 +58,15 @@ def sample(
           out)
 
 
-def _emit(params, out: Path | None) -> None:
-    """Yarn parameters as JSON to ``out``, or to stdout without one."""
+def _emit(params, out: Path | None, inputs: tuple[Path, ...] = (), force: bool = False
+          ) -> None:
+    """Yarn parameters as JSON to ``out``, or to stdout without one; never over one of
+    ``inputs`` unless ``force``."""
     if out is None:
         typer.echo(params.to_json())
         return
     check_output(out)
+    check_not_inputs([out], list(inputs), force)
     write_text(out, params.to_json() + "\n")
 
 
@@ -65,20 +88,48 @@ class CurveFormat(str, Enum):
     ply = "ply"
 
 
+#: The suffixes each curve format is written with (the first is its usual one).
+CURVE_SUFFIXES = {CurveFormat.npz: (".npz",), CurveFormat.mitsuba: (".txt",),
+                  CurveFormat.usd: (".usda", ".usd", ".usdc"), CurveFormat.ply: (".ply",)}
+
+
+def curve_format(out: Path, given: CurveFormat | None) -> CurveFormat:
+    """The format ``ipm curves`` writes ``out`` in: ``given``, or the one of its suffix; a
+    suffix of another format than ``given`` (or one USD cannot write), or an unknown suffix
+    without ``given``, is a one-line error."""
+    suffix = out.suffix.lower()
+    of_suffix = next((f for f, sfx in CURVE_SUFFIXES.items() if suffix in sfx), None)
+    if given is None:
+        if of_suffix is None:
+            known = ", ".join(s for sfx in CURVE_SUFFIXES.values() for s in sfx)
+            raise UserError(f"{out}: cannot tell the format from its suffix; name it {known}, "
+                            "or give --format")
+        return of_suffix
+    if of_suffix not in (given, None) or (given is CurveFormat.usd and of_suffix is None):
+        written = " or ".join(CURVE_SUFFIXES[given])
+        raise UserError(f"{out}: --format {given.value} writes {written} files, not "
+                        f"{suffix or 'a name without a suffix'}; change the suffix or drop "
+                        "--format")
+    return given
+
+
 @app.command()
 def curves(
     params: Annotated[Path, typer.Argument(help=YARN_HELP)],
     out: Annotated[Path, typer.Option("-o", "--out", help="file to write")],
     seed: Annotated[int, typer.Option(help="seed of the fiber generator")] = 0,
-    format: Annotated[CurveFormat, typer.Option(help="npz: arrays (points, offsets, radii, "
-                                                "kind, ply); mitsuba: a linearcurve file; "
-                                                "usd: a BasisCurves prim (.usda text, .usd/"
-                                                ".usdc binary); ply: polylines")]
-    = CurveFormat.npz,
+    format: Annotated[CurveFormat | None, typer.Option(help="npz: arrays (points, offsets, "
+                                                       "radii, kind, ply); mitsuba: a "
+                                                       "linearcurve file (.txt); usd: a "
+                                                       "BasisCurves prim (.usda text, .usd/"
+                                                       ".usdc binary); ply: polylines; "
+                                                       "default: by the suffix of --out")]
+    = None,
     knit: Annotated[str | None, typer.Option(help="the fibers of a knitted patch of this "
                                              "pattern (knit, purl, garter, rib) instead of "
                                              "a straight yarn")] = None,
     stitches: Annotated[str, typer.Option(help="with --knit: WALESxCOURSES")] = "8x6",
+    force: ForceOpt = False,
 ) -> None:
     """Generate the yarn's fibers (mm; a straight yarn along z, or with --knit a patch in
     the xy plane, knit face towards +z) and write them."""
@@ -87,7 +138,8 @@ def curves(
 
     p = YarnParams.load(params)
     check_output(out)
-    check_not_inputs([out], [params])
+    check_not_inputs([out], [params], force)
+    format = curve_format(out, format)
     if knit is None:
         fs = generate(p, seed)
     else:
@@ -107,13 +159,17 @@ def edit(
                                             "alpha_ply=*0.5 (repeat for several)")],
     out: Annotated[Path | None, typer.Option("-o", "--out", help="JSON file to write; "
                                              "stdout if omitted")] = None,
+    force: ForceOpt = False,
 ) -> None:
     """Make a new yarn from one: set or scale parameters (each result must stay inside its
     interval), as the paper's editing figure (twist changed, flyaways doubled)."""
     from ipm.edit import apply_edits
     from ipm.params import YarnParams
 
-    _emit(apply_edits(YarnParams.load(params), set_), out)
+    if out is not None:
+        check_output(out)
+        check_not_inputs([out], [params], force)
+    _emit(apply_edits(YarnParams.load(params), set_), out, (params,), force)
 
 
 @app.command()
@@ -124,6 +180,7 @@ def calibrate(
                                              "(JSON, for `ipm fit --calibration`)")] = None,
     tick_mm: Annotated[float, typer.Option(help="distance between the scale's finest ticks "
                                            "(mm)")] = 1.0,
+    force: ForceOpt = False,
 ) -> None:
     """Measure the pixel size (mm per pixel) of a capture setup from a photo of a ruler:
     every length ipm reports comes from it."""
@@ -134,7 +191,7 @@ def calibrate(
         raise UserError(f"--tick-mm must be a positive number, got {tick_mm}")
     if out is not None:
         check_output(out)
-        check_not_inputs([out], [ruler])
+        check_not_inputs([out], [ruler], force)
     cal = measure(read_image(ruler).mean(axis=2), str(ruler), tick_mm)
     typer.echo(f"{cal.pixel_size_mm:.6g} mm per pixel ({cal.tick_period_px:.2f} px per "
                f"{tick_mm:g} mm, scale at {cal.angle_deg:.1f} deg)")
@@ -171,29 +228,34 @@ app.command("bench")(bench_commands.bench)
 
 
 class Interrupted(Exception):
-    """Ctrl-C, raised from the SIGINT handler: not a KeyboardInterrupt, which the command
-    line library would turn into a silent exit."""
+    """Ctrl-C or a SIGTERM (its number the argument), raised from the signal handler: not a
+    KeyboardInterrupt, which the command line library would turn into a silent exit."""
 
 
 def main() -> None:
-    """Run the command line: a :class:`UserError` is one line and exit 2, Ctrl-C one line and
-    exit 130 (what was written stays: every output is written atomically)."""
+    """Run the command line: a :class:`UserError` is one line and exit 2, Ctrl-C (SIGINT) one
+    line and exit 130, SIGTERM the same with exit 143 (what was written stays: every output
+    is written atomically)."""
     import signal
     import warnings
 
     def interrupt(*_args) -> None:
         raise Interrupted
 
+    def terminate(*_args) -> None:
+        raise Interrupted(signal.SIGTERM)
+
     def one_line(message, *_args, **_kwargs) -> None:
         typer.echo(f"warning: {message}", err=True)
 
     signal.signal(signal.SIGINT, interrupt)
+    signal.signal(signal.SIGTERM, terminate)
     warnings.showwarning = one_line
     try:
         app()
     except UserError as e:
         typer.echo(f"error: {e}", err=True)
         sys.exit(2)
-    except (Interrupted, KeyboardInterrupt):
+    except (Interrupted, KeyboardInterrupt) as e:
         typer.echo("interrupted; the files written so far are complete and kept", err=True)
-        sys.exit(130)
+        sys.exit(128 + (signal.SIGTERM if e.args == (signal.SIGTERM,) else signal.SIGINT))

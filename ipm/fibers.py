@@ -16,7 +16,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from ipm.io import atomic_path, write_bytes
+from ipm.io import atomic_path
 
 
 class FiberKind(IntEnum):
@@ -68,16 +68,24 @@ class FiberSet:
         return np.repeat(np.arange(self.num_fibers), np.diff(self.offsets))
 
     # -- .npz ------------------------------------------------------------------------------
+    def _write_npz(self, f) -> None:
+        """The arrays, compressed, into the open binary file ``f`` (numpy streams each
+        array in chunks; the arrays are not copied when already of their type)."""
+        np.savez_compressed(f, points=self.points.astype(np.float32, copy=False),
+                            offsets=self.offsets.astype(np.int64, copy=False),
+                            radii=self.radii.astype(np.float32, copy=False),
+                            kind=self.kind.astype(np.uint8, copy=False),
+                            ply=self.ply.astype(np.int16, copy=False))
+
     def to_npz_bytes(self) -> bytes:
         buf = io.BytesIO()
-        np.savez_compressed(buf, points=self.points.astype(np.float32),
-                            offsets=self.offsets.astype(np.int64),
-                            radii=self.radii.astype(np.float32), kind=self.kind.astype(np.uint8),
-                            ply=self.ply.astype(np.int16))
+        self._write_npz(buf)
         return buf.getvalue()
 
     def save_npz(self, path: str | os.PathLike) -> None:
-        write_bytes(path, self.to_npz_bytes())
+        """Write the .npz straight to the file (atomically), without a copy in memory."""
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
+            self._write_npz(f)
 
     @classmethod
     def load_npz(cls, path: str | os.PathLike) -> FiberSet:
@@ -109,8 +117,15 @@ class FiberSet:
         return out.getvalue()
 
     def save_mitsuba(self, path: str | os.PathLike) -> None:
-        with atomic_path(path) as tmp:
-            tmp.write_text(self.mitsuba_curve_text())
+        """The :meth:`mitsuba_curve_text` file, written a fiber at a time (atomically)."""
+        r = np.repeat(self.round_radii(), np.diff(self.offsets))
+        with atomic_path(path) as tmp, open(tmp, "w") as out:
+            for f in range(self.num_fibers):
+                lo, hi = self.offsets[f], self.offsets[f + 1]
+                if f:
+                    out.write("\n")
+                np.savetxt(out, np.column_stack([self.points[lo:hi], r[lo:hi]]).astype(
+                    np.float32), fmt="%.6g")
 
     # -- USD and PLY: for other tools --------------------------------------------------------
     def save_usd(self, path: str | os.PathLike) -> None:

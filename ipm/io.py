@@ -68,15 +68,53 @@ def check_output(path: Path) -> None:
     check_writable_folder(path.parent if str(path.parent) else Path("."))
 
 
-def check_not_inputs(outputs: list[Path], inputs: list[Path | None]) -> None:
+def check_not_inputs(outputs: list[Path], inputs: list[Path | None], force: bool = False
+                     ) -> None:
     """Refuse, before any work, to write over a file the command reads (``ipm render y.json
-    -o y.png`` would replace y.json with its sidecar)."""
+    -o y.png`` would replace y.json with its sidecar; ``ipm edit g.json -o g.json`` a
+    render's sidecar with bare parameters), unless ``force`` (``--force``)."""
     from ipm.errors import UserError
 
-    given = {Path(p).resolve() for p in inputs if p is not None}
+    if force:
+        return
+    given = {_resolved(p) for p in inputs if p is not None}
     for out in outputs:
-        if Path(out).resolve() in given:
-            raise UserError(f"{out} is an input of this command; choose another output")
+        if _resolved(out) in given:
+            raise UserError(f"{out} is an input of this command; choose another output, or "
+                            "give --force to write over it")
+
+
+def _resolved(path: str | os.PathLike) -> Path:
+    """``path`` made absolute with its links followed; a link loop stays as it is named
+    (pathlib raises RuntimeError on one)."""
+    try:
+        return Path(path).resolve()
+    except (RuntimeError, OSError):
+        return Path(os.path.abspath(path))
+
+
+def check_regular_file(path: str | os.PathLike, what: str = "") -> None:
+    """A one-line :class:`~ipm.errors.UserError` unless ``path`` is a regular file (or a
+    link to one): a missing file, a link loop, and a FIFO, device or socket (reading one
+    would block or never end) are named."""
+    import errno
+    import stat
+
+    from ipm.errors import UserError
+
+    name = os.fspath(path)
+    try:
+        mode = os.stat(name).st_mode
+    except FileNotFoundError:
+        raise UserError(f"{name}: no such file") from None
+    except OSError as e:
+        why = "a symbolic link loop" if e.errno == errno.ELOOP else e.strerror
+        raise UserError(f"{name}: cannot open it ({why})") from None
+    if stat.S_ISDIR(mode):
+        raise UserError(f"{name} is a folder, not {what or 'a file'}")
+    if not stat.S_ISREG(mode):
+        raise UserError(f"{name} is not a regular file (a FIFO, device or socket); give "
+                        f"{what or 'a file'}")
 
 
 def prepare_folder(folder: Path, what: str = "output folder") -> None:

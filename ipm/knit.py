@@ -28,6 +28,7 @@ taken from: its ply pitch along the curve stays ``alpha_ply``.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Literal
 
@@ -158,25 +159,113 @@ class Patch:
 
 
 def knit_patch(params: YarnParams, pattern: Pattern = "knit", wales: int = 8,
-               courses: int = 6, seed: int = 0) -> Patch:
+               courses: int = 6, seed: int = 0, extra_bytes_per_vertex: int = 0) -> Patch:
     """The yarn ``params`` knitted into ``wales`` x ``courses`` stitches of ``pattern``,
-    each course a yarn of its own (fiber seed ``seed`` + course), centred on the origin."""
+    each course a yarn of its own (fiber seed ``seed`` + course), centred on the origin.
+
+    A patch whose fibers would not fit in memory is refused before any fiber is made
+    (:func:`check_patch_memory`; ``extra_bytes_per_vertex``: what the caller needs per
+    vertex on top, e.g. a renderer's buffers).  Courses are made one at a time and gathered
+    into one array, each released as it is copied, so the peak is about the patch itself
+    plus one course's work."""
     d = yarn_diameter(params)
     face = faces(pattern, wales, courses)
     lines = [course_centreline(face, r, d) for r in range(courses)]
+    check_patch_memory(params, lines, f"{pattern} {wales}x{courses}", extra_bytes_per_vertex)
     centre = np.concatenate(lines).mean(axis=0) * [1.0, 1.0, 0.0]
     lines = [c - centre for c in lines]
     parts = []
     for r, line in enumerate(lines):
-        parts.append(sweep(generate(params, seed + r, length=float(arc_length(line)[-1])), line))
-    return Patch(fibers=concatenate(parts), centrelines=lines, diameter=d)
+        part = sweep(generate(params, seed + r, length=float(arc_length(line)[-1])), line)
+        parts.append(part)
+    return Patch(fibers=concatenate(parts, release=True), centrelines=lines, diameter=d)
 
 
-def concatenate(parts: list[FiberSet]) -> FiberSet:
-    """One fiber set of several (offsets shifted, fibers in order)."""
+#: Bytes per fiber vertex: kept in the patch (float32 x, y, z), and the generator's and the
+#: sweep's float64 work arrays for the course being made (a dozen (F, V) arrays at the
+#: plies' level of :func:`ipm.generator.twist`, the fibers, their arc lengths, the frames).
+PATCH_BYTES_PER_VERTEX = 12
+COURSE_BYTES_PER_VERTEX = 160
+
+
+def estimated_vertices(params: YarnParams, length: float) -> int:
+    """About how many vertices :func:`ipm.generator.generate` makes for ``length`` mm of
+    the yarn: every core fiber at the generator's vertex spacing, and each flyaway's
+    length at that spacing (an upper estimate: a fiber's step is at least the spacing)."""
+    from ipm.generator import (
+        LONG_HAIR_FACTOR,
+        LONG_LOOP_FACTOR,
+        LONG_SHARE,
+        flyaway_count,
+        levels_of,
+        vertex_spacing,
+    )
+
+    levels = levels_of(params)
+    spacing = vertex_spacing(levels)
+    fibers = int(np.prod([lv.count for lv in levels]))
+    core = fibers * (int(np.ceil(length / spacing)) + 1)
+    loop = params.l_loop * (1 + LONG_SHARE * (LONG_LOOP_FACTOR - 1))
+    hair = params.l_hair * (1 + LONG_SHARE * (LONG_HAIR_FACTOR - 1))
+    mean = params.p * loop + (1 - params.p) * hair
+    return core + int(flyaway_count(params.g, length) * (mean / spacing + 2))
+
+
+def available_memory() -> int:
+    """Bytes this process may still take: the system's available memory (``MemAvailable``),
+    or less under an address-space limit (``ulimit -v``)."""
+    import resource
+
+    avail = None
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    avail = int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    if avail is None:
+        avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+    return avail if soft == resource.RLIM_INFINITY else min(avail, soft)
+
+
+def check_patch_memory(params: YarnParams, lines: list[np.ndarray], what: str,
+                       extra_bytes_per_vertex: int = 0) -> None:
+    """Refuse, in one line and before any fiber is made, a patch whose fibers would need
+    more memory than :func:`available_memory`."""
+    per_course = [estimated_vertices(params, float(arc_length(c)[-1])) for c in lines]
+    total = sum(per_course)
+    need = (total * (PATCH_BYTES_PER_VERTEX + extra_bytes_per_vertex)
+            + max(per_course) * COURSE_BYTES_PER_VERTEX)
+    limit = available_memory()
+    if need > limit:
+        from ipm.errors import UserError
+
+        raise UserError(f"a {what} patch of this yarn would have about {total / 1e6:,.0f} "
+                        f"million fiber vertices and need about {need / 1e9:.1f} GB; "
+                        f"{limit / 1e9:.1f} GB of memory is available: use fewer "
+                        "--stitches (or a yarn with fewer fibers)")
+
+
+def concatenate(parts: list[FiberSet], release: bool = False) -> FiberSet:
+    """One fiber set of several (offsets shifted, fibers in order).  ``release``: empty
+    ``parts`` while copying, so that each part's points are freed once copied and the
+    peak stays near the result's size (not twice it)."""
     sizes = np.concatenate([np.diff(p.offsets) for p in parts])
-    return FiberSet(points=np.concatenate([p.points for p in parts]),
-                    offsets=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
-                    radii=np.concatenate([p.radii for p in parts]),
-                    kind=np.concatenate([p.kind for p in parts]),
-                    ply=np.concatenate([p.ply for p in parts]))
+    radii = np.concatenate([p.radii for p in parts])
+    kind = np.concatenate([p.kind for p in parts])
+    ply = np.concatenate([p.ply for p in parts])
+    points = np.empty((int(sizes.sum()), 3), dtype=np.float32)  # pages taken as written
+    at = 0
+    for i in range(len(parts)):
+        part = parts[i]
+        points[at:at + len(part.points)] = part.points
+        at += len(part.points)
+        if release:
+            parts[i] = None
+        del part
+    if release:
+        parts.clear()
+    return FiberSet(points=points, offsets=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+                    radii=radii, kind=kind, ply=ply)

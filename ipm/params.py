@@ -238,6 +238,12 @@ class YarnParams:
         """The yarn of a JSON file: flat (``ipm sample``, ``ipm predict``), a render's sidecar
         (its ``params``) or a fit's ``params.json`` (its ``refined`` yarn, else ``neural``),
         so that every command that takes a yarn takes what the others write."""
+        if os.path.exists(path):
+            import stat
+
+            if not stat.S_ISREG(os.stat(path).st_mode):
+                raise ParamError(f"{path} is not a regular file (a folder, FIFO, device or "
+                                 "socket); give a JSON file")
         try:
             text = open(path, encoding="utf-8").read()
         except FileNotFoundError:

@@ -42,9 +42,10 @@ def read_image(path: str | os.PathLike, max_pixels: int = MAX_PIXELS) -> np.ndar
     orientation of camera files is applied.  Raises :class:`UserError` with one line for a
     missing, unreadable, non-image, truncated or absurdly large file.
     """
+    from ipm.io import check_regular_file
+
     name = os.fspath(path)
-    if os.path.isdir(name):
-        raise UserError(f"{name} is a folder, not an image")
+    check_regular_file(name, "an image")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error", Image.DecompressionBombWarning)
@@ -94,6 +95,10 @@ MAX_RESAMPLED_PIXELS = 50_000_000
 PLAUSIBLE_PIXEL_MM = (0.001, 0.1)
 
 
+#: A sidecar's pixel size outside this (mm) is refused: ten times beyond the plausible
+#: range either way (a render at a low --scale has coarse pixels).
+SIDECAR_PIXEL_MM = (PLAUSIBLE_PIXEL_MM[0] / 10, PLAUSIBLE_PIXEL_MM[1] * 10)
+
 #: The commands' help for the two ways to give a photo's pixel size (:func:`pixel_size_of`).
 PIXEL_SIZE_HELP = ("mm per photo pixel at the yarn; default: --calibration, or the ipm "
                    "sidecar `<photo>.json` (without any, the photo is refused)")
@@ -102,15 +107,29 @@ CALIBRATION_HELP = "pixel size from `ipm calibrate ruler.png -o FILE`"
 
 def sidecar_pixel_size(path: str | os.PathLike) -> tuple[Path, float] | None:
     """(the sidecar, its pixel size) of a photo: the ``pixel_size_mm`` of the ipm sidecar
-    beside it (``<photo>.json`` of ``ipm render``), or None."""
+    beside it (``<photo>.json`` of ``ipm render``), or None without one.  A sidecar whose
+    ``pixel_size_mm`` is not a positive number (``true`` is not 1 mm), or is far outside
+    what a yarn photo has, is a one-line :class:`UserError` naming the sidecar."""
     import json
+    import stat
 
     sidecar = Path(path).with_suffix(".json")
     try:
-        value = float(json.loads(sidecar.read_text(encoding="utf-8"))["pixel_size_mm"])
+        if not stat.S_ISREG(os.stat(sidecar).st_mode):
+            return None  # a FIFO would block
+        value = json.loads(sidecar.read_text(encoding="utf-8"))["pixel_size_mm"]
     except (OSError, ValueError, KeyError, TypeError):
         return None
-    return (sidecar, value) if np.isfinite(value) and value > 0 else None
+    lo, hi = SIDECAR_PIXEL_MM
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+            np.isfinite(value) and value > 0):
+        raise UserError(f"{sidecar}: pixel_size_mm must be a positive number of mm, got "
+                        f"{json.dumps(value)}; fix the sidecar or give --pixel-size")
+    if not lo <= value <= hi:
+        raise UserError(f"{sidecar}: pixel_size_mm {value:g} is not a yarn photo's (about "
+                        f"{PLAUSIBLE_PIXEL_MM[0]:g}-{PLAUSIBLE_PIXEL_MM[1]:g} mm); fix the "
+                        "sidecar or give --pixel-size")
+    return sidecar, float(value)
 
 
 def pixel_size_of(path: str | os.PathLike, pixel_size_mm: float | None = None,
@@ -129,10 +148,11 @@ def pixel_size_of(path: str | os.PathLike, pixel_size_mm: float | None = None,
         from ipm.calibrate import Calibration
 
         return Calibration.load(calibration).pixel_size_mm
+    from ipm.io import check_regular_file
+
+    check_regular_file(path, "an image")
     if found := sidecar_pixel_size(path):
         return found[1]
-    if not Path(path).is_file():
-        raise UserError(f"{os.fspath(path)}: no such file")
     raise UserError(f"{os.fspath(path)}: its pixel size is unknown; give --pixel-size MM, or "
                     "--calibration FILE from `ipm calibrate ruler.png -o FILE` (a photo of "
                     "a millimetre scale taken with the same setup)")
@@ -198,6 +218,39 @@ def yarn_layout(gray: np.ndarray) -> tuple[float, float]:
     return float(max(rows, cols)), float(score)
 
 
+#: ``--setup auto``: the capture setup is told from the photo (:func:`detect_setup`).
+AUTO_SETUP = "auto"
+#: A border at least this bright (sRGB) with a yarn darker than it is a backlit capture (a
+#: frontlit yarn is lit, lighter than its dark card; real backlit captures can be dim).
+BACKLIT_BORDER = 0.3
+
+
+def detect_setup(image: np.ndarray) -> tuple[str, str]:
+    """(setup, why) of an sRGB photo (H, W, 3): ``backlit`` for a dark yarn on a light
+    background (a light panel or a microscope's lamp), else ``frontlit`` (a light yarn on
+    the dark card of the scene).  The background is the median of the border; the yarn,
+    the pixels that differ from it most."""
+    gray = image.mean(axis=2)
+    border = np.concatenate([gray[0], gray[-1], gray[:, 0], gray[:, -1]])
+    background = float(np.median(border))
+    diff = gray - background
+    far = np.abs(diff) >= np.quantile(np.abs(diff), 0.9)
+    darker = float(np.mean(diff[far])) < 0
+    if background >= BACKLIT_BORDER and darker:
+        return "backlit", f"a dark yarn on a light background, level {background:.2f}"
+    return "frontlit", (f"a {'dark' if darker else 'light'} yarn on a "
+                        f"{'light' if background >= BACKLIT_BORDER else 'dark'} background, "
+                        f"level {background:.2f}")
+
+
+def check_setup_name(setup: str) -> None:
+    """A one-line :class:`UserError` for a setup that is neither a scene's nor ``auto``."""
+    if setup != AUTO_SETUP:
+        from ipm.render.scene import setup_options
+
+        setup_options(setup)
+
+
 @dataclass(frozen=True)
 class Photo:
     """A yarn photo: ``image`` (H, W, 3) float32 sRGB in [0, 1], ``pixel_size_mm`` (one
@@ -250,6 +303,16 @@ class Photo:
             img = np.concatenate([np.broadcast_to(background, (above, img.shape[1], 3)), img,
                                   np.broadcast_to(background, (missing - above, img.shape[1], 3))])
         return img
+
+    def with_setup(self, setup: str) -> tuple[Photo, str | None]:
+        """The photo read as of capture ``setup``; for ``auto`` the one
+        :func:`detect_setup` tells, and a note saying which and why."""
+        if setup != AUTO_SETUP:
+            return replace(self, setup=setup), None
+        chosen, why = detect_setup(self.image)
+        other = "frontlit" if chosen == "backlit" else "backlit"
+        return (replace(self, setup=chosen),
+                f"{self.name}: read as {chosen} ({why}); --setup {other} to read it otherwise")
 
     def upright(self) -> tuple[Photo, str | None]:
         """The photo with its yarn horizontal, as the nets and the scene see it, and a note

@@ -9,8 +9,8 @@ from typing import Annotated
 import typer
 
 from ipm.errors import UserError
-from ipm.photo import CALIBRATION_HELP, PIXEL_SIZE_HELP
-from ipm.render.commands import SetupOpt
+from ipm.photo import AUTO_SETUP, CALIBRATION_HELP, PIXEL_SIZE_HELP
+from ipm.render.commands import ForceOpt, PhotoSetupOpt, SetupOpt
 
 _MODELS_HELP = ("folder with ensemble.json (an `ipm train --out`); default: the models "
                 "shipped for --setup")
@@ -102,15 +102,16 @@ def predict(
                                          "case, e.g. a negative; a backlit photo takes "
                                          "--setup backlit)")] = False,
     device: Annotated[str, typer.Option(help="cpu | cuda")] = "cpu",
-    setup: SetupOpt = "frontlit",
+    setup: PhotoSetupOpt = AUTO_SETUP,
+    force: ForceOpt = False,
 ) -> None:
     """Infer the yarn parameters from photos with the neural ensemble, in one process.  One
     photo: prints the parameters and writes them to --out as flat JSON (the form `ipm
-    curves` reads); several photos or a folder: one JSON per photo in the folder --out."""
+    curves` reads); several photos or a folder: one JSON per photo in the folder --out,
+    every photo that can be read done, each that cannot listed (exit 1)."""
     from ipm.dataset import photo_files
-    from ipm.io import check_not_inputs, check_output, prepare_folder, write_text
+    from ipm.io import check_not_inputs, check_output, prepare_folder
     from ipm.nets.config import PredictConfig
-    from ipm.photo import Photo, pixel_size_of, sidecar_pixel_size
 
     files = [f for p in photos for f in (photo_files(p) if p.is_dir() else [p])]
     if not files:
@@ -125,30 +126,86 @@ def predict(
         if out is None:
             raise UserError("several photos: give --out FOLDER for their JSON files")
         targets = [out / f"{f.stem}.json" for f in files]
-        if len(set(targets)) < len(targets):
-            raise UserError("two photos share a name; their JSON files would collide")
-    sidecars = [found[0] for f in files if (found := sidecar_pixel_size(f))]
-    check_not_inputs([t for t in targets if t is not None], [*files, *sidecars])
-    sizes = [pixel_size_of(f, pixel_size, calibration) for f in files]  # all before any work
-    if not single:
-        prepare_folder(out)
-    ensemble = _load(cfg.models, cfg.device, cfg.setup)
-    warned = set()
-    for file, size, target in zip(cfg.photos, sizes, targets, strict=True):
-        shot, note = Photo.read(file, size, cfg.setup).upright()
-        if note:
-            typer.echo(f"note: {note}", err=True)
-        params = ensemble.predict(shot.inverted() if cfg.invert else shot, cfg.crops)
-        warning = ensemble.upsampling_warning(size)
-        if warning and size not in warned:  # after the photo: a size that fails it needs none
-            typer.echo(f"warning: {warning}", err=True)
-            warned.add(size)
-        if single:
-            typer.echo(params.to_json())
-        else:
-            typer.echo(f"{file} -> {target}", err=True)
-        if target is not None:
-            write_text(target, params.to_json() + "\n")
+        seen: dict[Path, Path] = {}
+        for f, t in zip(files, targets, strict=True):
+            if t in seen:
+                raise UserError(f"two photos share a name, {seen[t]} and {f}: their JSON files "
+                                f"would collide in {out}; rename one")
+            seen[t] = f
+    sidecars = [f.with_suffix(".json") for f in files if _is_file(f.with_suffix(".json"))]
+    check_not_inputs([t for t in targets if t is not None], [*files, *sidecars], force)
+    if single:
+        _predict_one(cfg, files[0], targets[0], pixel_size, calibration, {}, set(), True)
+        return
+    made = not out.exists()
+    prepare_folder(out)
+    ensembles: dict[str, object] = {}
+    warned: set[float] = set()
+    failed = []
+    try:
+        for file, target in zip(cfg.photos, targets, strict=True):
+            try:
+                _predict_one(cfg, file, target, pixel_size, calibration, ensembles, warned,
+                             False)
+            except UserError as e:
+                if isinstance(e, ModelsError):
+                    raise
+                message = str(e)
+                named = message if message.startswith(str(file)) else f"{file}: {message}"
+                typer.echo(f"error: {named}", err=True)
+                failed.append(file)
+    finally:
+        if made and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()  # nothing written: no empty folder left behind
+    if failed:
+        typer.echo(f"{len(failed)} of {len(files)} photos failed; the others' JSON files are "
+                   f"in {out}", err=True)
+        raise typer.Exit(1)
+
+
+class ModelsError(UserError):
+    """The models cannot be loaded: the same for every photo, so a folder run stops."""
+
+
+def _is_file(path: Path) -> bool:
+    try:
+        return path.is_file()
+    except OSError:
+        return False
+
+
+def _predict_one(cfg, file: Path, target: Path | None, pixel_size, calibration,
+                 ensembles: dict, warned: set, single: bool) -> None:
+    """``ipm predict`` of one photo: read at its pixel size, set upright, read as of its
+    setup (told and said for ``auto``), predicted; the JSON to stdout (one photo) and to
+    ``target``.  ``ensembles`` keeps the nets loaded per setup."""
+    from ipm.io import write_text
+    from ipm.photo import Photo, pixel_size_of
+
+    size = pixel_size_of(file, pixel_size, calibration)
+    shot, note = Photo.read(file, size).upright()
+    shot, chosen = shot.with_setup(cfg.setup)
+    if note:
+        typer.echo(f"note: {note}", err=True)
+    if shot.setup not in ensembles:
+        try:
+            ensembles[shot.setup] = _load(cfg.models, cfg.device, shot.setup)
+        except UserError as e:
+            raise ModelsError(str(e)) from None
+    ensemble = ensembles[shot.setup]
+    params = ensemble.predict(shot.inverted() if cfg.invert else shot, cfg.crops)
+    if chosen:  # once the photo is read: a refused photo needs no note
+        typer.echo(f"note: {chosen}", err=True)
+    warning = ensemble.upsampling_warning(size)
+    if warning and size not in warned:  # after the photo: a size that fails it needs none
+        typer.echo(f"warning: {warning}", err=True)
+        warned.add(size)
+    if single:
+        typer.echo(params.to_json())
+    else:
+        typer.echo(f"{file} -> {target}", err=True)
+    if target is not None:
+        write_text(target, params.to_json() + "\n")
 
 
 def saliency(

@@ -11,6 +11,7 @@ from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.nets.encoders import ENCODERS
 from ipm.nets.tasks import ENSEMBLE_TASKS, REG_TASKS, TASKS
+from ipm.photo import check_setup_name
 from ipm.render.scene import setup_options
 
 
@@ -154,7 +155,7 @@ class PredictConfig:
     setup: str = "frontlit"
 
     def __post_init__(self) -> None:
-        setup_options(self.setup)  # an unknown setup is one line naming the choices
+        check_setup_name(self.setup)  # an unknown setup is one line naming the choices
         if not 1 <= self.crops <= 64:
             raise UserError(f"crops must be in 1..64, got {self.crops}")
 

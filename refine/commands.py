@@ -10,7 +10,7 @@ from typing import Annotated
 import typer
 
 from ipm.io import check_not_inputs, check_same_settings, prepare_folder
-from ipm.photo import CALIBRATION_HELP, PIXEL_SIZE_HELP
+from ipm.photo import AUTO_SETUP, CALIBRATION_HELP, PIXEL_SIZE_HELP, check_setup_name
 from ipm.progress import progress_bar
 from ipm.refine.search import (
     DEFAULT_LEARNED,
@@ -19,7 +19,7 @@ from ipm.refine.search import (
     SearchOptions,
     search_stages_of,
 )
-from ipm.render.commands import SetupOpt
+from ipm.render.commands import ForceOpt, PhotoSetupOpt
 
 #: The search's defaults, one place for both commands: :class:`SearchOptions`.
 _DEFAULT = SearchOptions()
@@ -88,7 +88,7 @@ def fit(
                                          "case, e.g. a negative; a backlit photo takes "
                                          "--setup backlit)")] = False,
     variant: Annotated[str | None, typer.Option(help="Mitsuba variant")] = None,
-    setup: SetupOpt = "frontlit",
+    setup: PhotoSetupOpt = AUTO_SETUP,
     learned: Annotated[float, typer.Option(min=0, help=_LEARNED_HELP)] = DEFAULT_LEARNED,
     detail: Annotated[float, typer.Option(min=0, help=_DETAIL_HELP)] = 0.0,
     match_size: Annotated[bool, typer.Option("--match-size", help=_MATCH_SIZE_HELP)] = False,
@@ -96,6 +96,7 @@ def fit(
     = False,
     sure_count: Annotated[float, typer.Option(min=0, max=1, help=_SURE_COUNT_HELP)]
     = SURE_COUNT,
+    force: ForceOpt = False,
 ) -> None:
     """Infer a yarn's parameters from a photo: the neural ensemble, and with --refine a
     render-and-compare search; writes params.json (neural and refined parameters, their
@@ -104,22 +105,24 @@ def fit(
     capture).  The nets and the renders are those of the photo's capture setup (--setup)."""
     from ipm.photo import Photo, pixel_size_of
     from ipm.refine.fit import FitOptions
-    from ipm.render.scene import setup_options
 
     options = FitOptions(search=SearchOptions(**search_stages_of(params), algorithm=algorithm,
                                               budget=budget, time_s=time_limit, polish=polish),
                          ply_counts=ply_counts, learned=learned, detail=detail,
                          match_size=match_size, choose_count=not nets_ply_count,
                          outside=params == _DEFAULT_PARAMS and prior, sure_count=sure_count)
+    sidecar = photo.with_suffix(".json")
     check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
-                                         "params.json", "knit.png", "knit.json")], [photo])
+                                         "params.json", "knit.png", "knit.json")],
+                     [photo, sidecar if sidecar.is_file() else None, calibration], force)
     if knit is not None:
         from ipm.knit import faces
 
         faces(knit, 1, 1)  # an unknown pattern fails before any work
-    setup_options(setup)  # an unknown setup fails before any work
+    check_setup_name(setup)  # an unknown setup fails before any work
     pixel_size = pixel_size_of(photo, pixel_size, calibration)
-    shot, note = Photo.read(photo, pixel_size, setup).upright()
+    shot, note = Photo.read(photo, pixel_size).upright()
+    shot, chosen = shot.with_setup(setup)
     if note:
         typer.echo(f"note: {note}", err=True)
     if invert:
@@ -127,7 +130,8 @@ def fit(
     made_folder = not out.exists()
     prepare_folder(out)
     try:
-        _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prior, variant)
+        _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prior, variant,
+                  chosen)
     except BaseException:
         if made_folder and out.is_dir() and not any(out.iterdir()):
             out.rmdir()  # a late error leaves no empty folder behind
@@ -135,8 +139,9 @@ def fit(
 
 
 def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prior,
-              variant) -> None:
-    """The body of ``ipm fit`` once the photo is read and the folder made."""
+              variant, chosen: str | None = None) -> None:
+    """The body of ``ipm fit`` once the photo is read and the folder made; ``chosen``: the
+    note of the setup told from the photo, said once the nets have read it."""
     from ipm.io import write_text
     from ipm.photo import write_png
     from ipm.refine.capture import card_warning
@@ -150,6 +155,8 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, options, budget, prio
 
     ensemble = Ensemble.load(models, setup=shot.setup)
     neural = ensemble.predict(shot)
+    if chosen:
+        typer.echo(f"note: {chosen}", err=True)
     renderer = Renderer(variant, setup_options(shot.setup))
     with progress_bar("renders, best loss {task.fields[best]}", transient=True) as bar:
         task = bar.add_task("refining" if refine else "scoring",
@@ -301,6 +308,10 @@ def compare(
         typer.echo(f"{k:10s} MAE neural {v['neural']:.4g} -> refined {v['refined']:.4g} "
                    f"({v['change_pct']:+.0f}%)", err=True)
     for r in s["failed"]:
-        typer.echo(f"warning: not fitted: {r['error']}", err=True)
+        named = r["error"] if r["error"].startswith(r["image"]) else f"{r['image']}: {r['error']}"
+        typer.echo(f"error: not fitted: {named}", err=True)
     typer.echo(f"{s['improved']}/{s['count']} photos improved; wrote {out}/index.md, "
-               "results.csv, compare.png", err=True)
+               "results.csv" + (", compare.png" if s["count"] else ""), err=True)
+    if s["failed"]:
+        typer.echo(f"{len(s['failed'])} of {len(listed)} photos failed", err=True)
+        raise typer.Exit(1)

@@ -44,6 +44,8 @@ class PhotoPrep:
             raise UserError(f"blur must be in [0, 1] mm, got {self.blur_mm}")
 
     def load(self, record: Record) -> Photo:
+        if "error" in record.info:  # found when listed (its pixel size): said per photo
+            raise UserError(record.info["error"])
         photo = record.photo().defocused(self.blur_mm)
         return photo.inverted() if self.invert else photo
 
@@ -53,7 +55,8 @@ def photos_in(folder: Path, pixel_size_mm: float | None, count: int | None = Non
     """The photos of ``folder`` sorted by name: a dataset's (with labels, pixel sizes and
     capture setup) if it holds a manifest, else every image file (of capture ``setup``,
     frontlit if None) at its pixel size (``pixel_size_mm``, ``calibration`` or its sidecar:
-    :func:`ipm.photo.pixel_size_of`; a photo without one is refused, as by ``ipm fit``).
+    :func:`ipm.photo.pixel_size_of`; a photo without one, or gone, gets an ``error`` in
+    its record's ``info``, reported in its row; if none has one, that is refused).
     They must all be of one setup (``setup``, if given), since one ensemble and one scene
     fit them."""
     folder = Path(folder)
@@ -62,8 +65,17 @@ def photos_in(folder: Path, pixel_size_mm: float | None, count: int | None = Non
     if (folder / MANIFEST).is_file():
         photos = read_manifest(folder)
     else:
-        photos = [Record(p, pixel_size_of(p, pixel_size_mm, calibration),
-                         setup=setup or "frontlit") for p in photo_files(folder)]
+        photos, errors = [], []
+        for p in photo_files(folder):
+            try:
+                photos.append(Record(p, pixel_size_of(p, pixel_size_mm, calibration),
+                                     setup=setup or "frontlit"))
+            except UserError as e:  # this photo's: reported in its row, the others go on
+                errors.append(e)
+                photos.append(Record(p, float("nan"), setup=setup or "frontlit",
+                                     info={"error": str(e)}))
+        if photos and len(errors) == len(photos):
+            raise errors[0]  # (none has a pixel size: say it once)
     if not photos:
         raise UserError(f"{folder} holds no photos ({', '.join(PHOTO_SUFFIXES)})")
     setups = sorted({p.setup for p in photos} | ({setup} if setup else set()))
@@ -109,26 +121,31 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
     the nets' readings for the loss and ``detail_of`` the detail nets' for a photo
     (:func:`ipm.refine.fit.fit`).  A row is appended
     (and flushed) as each fit ends; a photo that cannot be read or used gets a row with its
-    ``error`` instead, and the others go on.  A line torn by a kill, and any row that does
-    not belong to the photo at its place, is dropped and that photo fitted again."""
+    ``error`` instead, and the others go on.  Each row records the photo's content hash
+    (:func:`content_hash`): a row is resumed only for a photo of the same name and content,
+    so a replaced photo, or one that could not be read and was fixed, is fitted again.  A
+    line torn by a kill is dropped and its photo fitted again."""
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
-    done: list[dict] = []
+    hashes = [content_hash(p.image) for p in photos]
+    kept: dict[tuple[str, str], dict] = {}
     for line in path.read_text(encoding="utf-8").splitlines() if path.is_file() else []:
         try:
             row = json.loads(line)
         except json.JSONDecodeError:
             break
-        if len(done) == len(photos) or row.get("image") != str(photos[len(done)].image):
-            break
-        done.append(row)
-    write_text(path, "".join(json.dumps(r) + "\n" for r in done))
+        if isinstance(row, dict) and row.get("sha256"):
+            kept[(str(row.get("image")), row["sha256"])] = row
+    done: list[dict | None] = [kept.get((str(p.image), h)) if h else None
+                               for p, h in zip(photos, hashes, strict=True)]
+    write_text(path, "".join(json.dumps(r) + "\n" for r in done if r is not None))
+    count = sum(r is not None for r in done)
     if progress:
-        progress(len(done), len(photos))
+        progress(count, len(photos))
     renderer = None
     with open(path, "a", encoding="utf-8") as f:
-        for i in range(len(done), len(photos)):
+        for i in (i for i, r in enumerate(done) if r is None):
             try:
                 photo = prep.load(photos[i])
                 neural = neural_of(i, photo)
@@ -140,12 +157,33 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
                               sigma_of(photo) if sigma_of else None,
                               count_prior_of(photo) if count_prior_of else None, readings,
                               detail_of(photo) if detail_of else None)
+            row["sha256"] = hashes[i]
             f.write(json.dumps(row) + "\n")
             f.flush()
-            done.append(row)
+            done[i] = row
+            count += 1
             if progress:
-                progress(i + 1, len(photos))
+                progress(count, len(photos))
     return done
+
+
+def content_hash(path: Path) -> str | None:
+    """The SHA-256 of a photo's bytes, or None for one that is not a readable regular file
+    (never read: a FIFO would block)."""
+    import hashlib
+    import os
+    import stat
+
+    try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return None
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+        return h.hexdigest()
+    except OSError:
+        return None
 
 
 def summary(rows: list[dict], truth: Sequence[YarnParams | None],

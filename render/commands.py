@@ -23,6 +23,12 @@ SetupOpt = Annotated[str, typer.Option(
     help="capture setup: frontlit (colour macro photo under soft boxes, the paper's) or "
          "backlit (grey silhouette on a light panel, as hairiness testers and microscopes)")]
 
+PhotoSetupOpt = Annotated[str, typer.Option(
+    help="capture setup of the photo: frontlit, backlit, or auto (told from the photo: a dark "
+         "yarn on a light background is backlit; the choice is said)")]
+ForceOpt = Annotated[bool, typer.Option("--force", help="write over an output that is an "
+                                        "input, or a file this command did not make")]
+
 
 class RenderFormat(str, Enum):
     png = "png"
@@ -47,7 +53,12 @@ def render(
                                                  "scene (+ curve file) to render elsewhere")]
     = RenderFormat.png,
     variant: VariantOpt = None,
-    setup: SetupOpt = "frontlit",
+    setup: Annotated[str | None, typer.Option(
+        help="capture setup: frontlit (colour macro photo under soft boxes, the paper's) or "
+             "backlit (grey silhouette on a light panel, as hairiness testers and "
+             "microscopes); default: the one a fit's params.json or a render's sidecar "
+             "records, else frontlit")] = None,
+    force: ForceOpt = False,
 ) -> None:
     """Render a yarn like a photo of one of the capture setups; writes ``<out>.json`` beside
     the image (parameters, seeds, render settings, setup and ``pixel_size_mm``)."""
@@ -56,7 +67,12 @@ def render(
     from ipm.render.scene import frame_size, setup_options
 
     frame_size(scale)
-    options = setup_options(setup)
+    if setup is None:
+        setup = recorded_setup(params) if params is not None else None
+        if setup is not None and setup != "frontlit":
+            typer.echo(f"note: rendered {setup}, the setup {params} records; --setup to "
+                       "choose", err=True)
+    options = setup_options(setup or "frontlit")
     check_output(out)
     if format is RenderFormat.png and out.suffix.lower() != ".png":
         raise UserError(f"{out}: ipm render writes PNG images; give a .png name")
@@ -74,7 +90,7 @@ def render(
     xml = Path(out).with_suffix(".xml")
     check_not_inputs([xml, xml.with_name(xml.stem + "_curves.txt")]
                      if format is RenderFormat.xml else [out, out.with_suffix(".json")],
-                     [params])
+                     [params], force)
     if format is RenderFormat.xml:
         from ipm.render.export import save_scene_xml
 
@@ -92,6 +108,26 @@ def render(
     write_text(out.with_suffix(".json"), json.dumps(record, indent=2) + "\n")
     typer.echo(f"{image.shape[1]}x{image.shape[0]} px, {record['pixel_size_mm']:.4g} mm/px "
                f"-> {out}", err=True)
+
+
+def recorded_setup(path: Path) -> str | None:
+    """The capture setup a yarn file records: a fit's ``params.json`` (its settings) or a
+    render's sidecar; None for bare parameters or a file that cannot be read (its reader
+    says why)."""
+    import os
+    import stat
+
+    try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return None  # a FIFO would block
+        d = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(d, dict):
+        return None
+    settings = d.get("settings")
+    found = settings.get("setup") if isinstance(settings, dict) else d.get("setup")
+    return found if isinstance(found, str) else None
 
 
 def _pair(text: str, option: str, what: str, lo: int, hi: int) -> tuple[int, int]:
@@ -122,6 +158,7 @@ def knit(
                                       "seed + k)")] = 0,
     render_seed: Annotated[int, typer.Option(help="seed of the path tracer's sampler")] = 0,
     variant: VariantOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """Knit the yarn into a patch of stitches (ipm/knit.py: Omega loops after Peirce, the
     yarn swept along them) and render it in the scene's lights; writes ``<out>.json``
@@ -139,7 +176,7 @@ def knit(
     check_output(out)
     if out.suffix.lower() != ".png":
         raise UserError(f"{out}: ipm knit writes PNG images; give a .png name")
-    check_not_inputs([out, out.with_suffix(".json")], [params])
+    check_not_inputs([out, out.with_suffix(".json")], [params], force)
     image, record, patch = knit_and_render(Renderer(variant), p, pattern, (wales, courses),
                                            (width, height), spp, seed, render_seed)
     save_png(out, image)

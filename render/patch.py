@@ -8,7 +8,7 @@ import numpy as np
 
 from ipm.knit import Patch, knit_patch
 from ipm.params import YarnParams
-from ipm.render.renderer import Renderer
+from ipm.render.renderer import RENDER_BYTES_PER_VERTEX, Renderer
 from ipm.render.scene import Frame
 
 #: Room left around the patch in the frame.
@@ -35,7 +35,8 @@ def knit_and_render(renderer: Renderer, params: YarnParams, pattern: str,
     """Knit ``params`` (``stitches`` = wales, courses) and render the patch at ``size`` =
     (width, height) px: the linear RGB image, the sidecar record that renders it again,
     and the patch."""
-    patch = knit_patch(params, pattern, *stitches, seed)
+    patch = knit_patch(params, pattern, *stitches, seed,
+                       extra_bytes_per_vertex=RENDER_BYTES_PER_VERTEX)
     frame = patch_frame(patch, *size)
     image = render_patch(renderer, patch, params.color, frame, spp, render_seed)
     record = {"params": params.to_dict(), "pattern": pattern, "stitches": list(stitches),

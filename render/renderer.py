@@ -9,6 +9,7 @@ through ``mi.traverse``.
 
 from __future__ import annotations
 
+import math
 import os
 import tempfile
 from dataclasses import asdict
@@ -37,8 +38,29 @@ from ipm.render.scene import (
 )
 from ipm.render.variant import mitsuba
 
+#: Bytes per fiber vertex a render takes beyond the fibers: :func:`world_curves`' float64
+#: work arrays and float32 buffers, their copies in Dr.Jit, and the curves' BVH.
+RENDER_BYTES_PER_VERTEX = 120
+#: Dr.Jit counts a render's samples (pixels x samples per pixel) in 32 bits: at 2^32 or more
+#: it crashed the process, so such a render is refused (:func:`check_sample_count`).
+MAX_SAMPLES = 2 ** 32
 #: A two-vertex fiber: the curve file the scenes are loaded with before any swap.
 _PLACEHOLDER_CURVE = "0 0 -1 0.01\n0 0 1 0.01\n"
+
+
+def check_sample_count(width: int, height: int, spp: int) -> None:
+    """Refuse, in one line, a render of :data:`MAX_SAMPLES` samples or more (the sampler
+    may round ``spp`` up to a product of two near-equal integers: counted so)."""
+    side = math.ceil(math.sqrt(spp))
+    if width * height * side * math.ceil(spp / side) >= MAX_SAMPLES:
+        from ipm.errors import UserError
+
+        most = (MAX_SAMPLES - 1) // (width * height)
+        most = max(most - 2 * math.isqrt(most) - 1, 0)  # room for the sampler's rounding
+        raise UserError(f"{width}x{height} px at {spp} samples per pixel is "
+                        f"{width * height * spp:,} samples, more than the renderer can take "
+                        f"(under 2^32); lower --spp (to {most:,} or less here) or the image "
+                        "size")
 
 
 def world_curves(fibers: FiberSet, to_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -134,7 +156,8 @@ class Renderer:
         variations of ``look`` are :meth:`render`'s)."""
         if spp < 1:
             raise ValueError(f"spp must be >= 1, got {spp}")
-        frame_size(scale)  # validates the scale
+        width, height = (frame.width, frame.height) if frame is not None else frame_size(scale)
+        check_sample_count(width, height, spp)
         to_world = yarn_to_world() if to_world is None else to_world
         options = scaled_options(self.options, look)
         if self.variant.startswith("scalar"):

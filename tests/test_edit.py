@@ -1,4 +1,4 @@
-"""ipm edit's rules: set, scale, round integers, and one-line errors."""
+"""ipm edit's rules: set, scale, whole integers, and one-line errors."""
 
 import pytest
 
@@ -15,8 +15,10 @@ def test_set_and_scale():
     assert q.R_ply == 0.3 and q.alpha == p.alpha
 
 
-def test_integers_are_rounded_after_scaling():
-    assert apply_edits(preset("golden"), ["m=*1.5"]).m == round(43 * 1.5)
+def test_integers_stay_whole_after_scaling():
+    assert apply_edits(preset("golden"), ["m=*2"]).m == 86
+    with pytest.raises(ParamError, match="m is an integer"):
+        apply_edits(preset("golden"), ["m=*1.5"])
 
 
 @pytest.mark.parametrize("spec, words", [

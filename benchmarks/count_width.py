@@ -1,9 +1,9 @@
 """How wide the nets' yarn renders against the photo's core, per set of photos: the gate
-(:data:`ipm.refine.fit.COUNT_WIDTH_FACTOR`) beyond which a fit takes the yarn for one outside
-the nets' range and searches its thickness first (``FitOptions.outside``), and within which
-a backlit fit chooses its ply count (the choice reads the core's outline at the yarn's
+(:data:`ipm.refine.plan.COUNT_WIDTH_FACTOR`) beyond which a fit takes the yarn for one
+outside the nets' range and searches its thickness first (:func:`ipm.refine.plan.plan`), and
+within which a backlit fit chooses its ply count (the choice reads the core's outline at the yarn's
 thickness; where the nets' thickness is far from the photo's, it misread the count:
-docs/real-photos-count at cc59bd2).  Per photo, :func:`ipm.refine.fit.width_ratio` of the
+docs/real-photos-count at cc59bd2).  Per photo, :func:`ipm.refine.measure.width_ratio` of the
 nets' guess in the photo's setup, before its fiber colour is matched to the photo, as ``ipm
 fit`` decides the switch.
 
@@ -24,9 +24,11 @@ from ipm.benchmarks.machine import markdown_header, publish
 
 
 def ratios(photos: list, setup: str) -> list[float]:
-    """:func:`ipm.refine.fit.width_ratio` of the shipped nets' guess for each photo."""
+    """:func:`ipm.refine.measure.width_ratio` of the shipped nets' guess for each photo."""
     from ipm.nets.ensemble import Ensemble
-    from ipm.refine.fit import FitOptions, search_objective, width_ratio
+    from ipm.refine.fit import search_objective
+    from ipm.refine.measure import width_ratio
+    from ipm.refine.plan import FitConfig
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
@@ -34,7 +36,7 @@ def ratios(photos: list, setup: str) -> list[float]:
     renderer = Renderer(options=setup_options(setup))
     out = []
     for photo in photos:
-        objective, small = search_objective(photo, renderer, FitOptions())
+        objective, small = search_objective(photo, renderer, FitConfig())
         out.append(width_ratio(objective, ens.predict(photo), small))
     return out
 
@@ -42,7 +44,7 @@ def ratios(photos: list, setup: str) -> list[float]:
 def main() -> None:
     from ipm.benchmarks.report import load_records
     from ipm.photo import Photo
-    from ipm.refine.fit import COUNT_WIDTH_FACTOR, within_gate
+    from ipm.refine.plan import COUNT_WIDTH_FACTOR, within_gate
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", action="append", default=[], help="a labelled set (repeat)")
@@ -69,7 +71,7 @@ def main() -> None:
     text = (markdown_header("The nets' yarn against the photo's core width", command,
                             "mitsuba", "torch")
             + f"\nThe render of the nets' guess (fiber seed 0, before its colour is matched "
-            f"to the photo) over the photo's core width (`ipm.refine.fit.width_ratio`); "
+            f"to the photo) over the photo's core width (`ipm.refine.measure.width_ratio`); "
             f"outside a factor {COUNT_WIDTH_FACTOR:g} of 1 a backlit fit takes the yarn for "
             f"one outside the nets' range and searches its thickness first, without their "
             f"prior.\n\n" + "\n".join(rows) + "\n")

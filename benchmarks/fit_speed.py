@@ -16,7 +16,7 @@ the search and the re-scoring, and writing the renders.  The median is the figur
 target is under 60 s on 2 cores (we aim for 15 s).  Beside it, from each fit's
 ``params.json``: the seconds of the fit itself (colour match, search, re-scoring) and the
 search's evaluations, so the report says where the time goes and what 15 s would take.  A
-frontlit fit whose ply count the nets doubt skips its search (``FitOptions.sure_count``),
+frontlit fit whose ply count the nets doubt skips its search (``FitConfig.sure_count``),
 so the report also gives the median of the fits that searched.
 The load average before and after is printed: on a shared machine other processes slow
 everything down.
@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ipm.benchmarks.machine import markdown_header, publish
-from ipm.refine.search import SearchOptions
+from ipm.refine.plan import FitConfig
 
 
 def time_fit(photo: Path, pixel_size_mm: float, setup: str, out: Path) -> float:
@@ -72,7 +72,7 @@ def main() -> None:
     else:
         records = [(f, args.pixel_size, args.setup)
                    for f in photo_files(args.photos)[:args.count]]
-    d = SearchOptions()
+    d = FitConfig()
     before = load()
     rows = ["| photo | pixel size (mm) | wall time (s) | of it the fit (s) | evaluations | "
             "search |", "|---|---|---|---|---|---|"]
@@ -83,12 +83,12 @@ def main() -> None:
             written = json.loads((Path(tmp) / str(i) / "params.json").read_text())
             fits.append(written["seconds"])
             evals.append(written["evaluations"])
-            search = written["settings"]["search"]
-            stages = ";".join(",".join(s) for s in [search["params"], *search["later"]])
+            stages = ";".join(",".join(s["params"]) or s["name"]
+                              for s in written["plan"]["stages"])
             rows.append(f"| {image.name} | {pixel_size_mm:g} | {times[-1]:.1f} | "
                         f"{fits[-1]:.1f} | {evals[-1]} | `{stages}` |")
     rest = np.median(np.subtract(times, fits))
-    # a fit may skip its search (a frontlit ply count the nets doubt: FitOptions.sure_count);
+    # a fit may skip its search (a frontlit ply count the nets doubt: FitConfig.sure_count);
     # the time per evaluation and the searched fits' median are of those that searched
     searched = [i for i, e in enumerate(evals) if e > 0]
     per_eval = np.median([fits[i] / evals[i] for i in searched]) if searched else np.nan
@@ -96,7 +96,8 @@ def main() -> None:
                    f"**{np.median([times[i] for i in searched]):.1f} s**"
                    if 0 < len(searched) < len(times) else "")
     rows += ["", f"**Median of {len(times)}: {np.median(times):.1f} s**{of_searched} (target: "
-             f"under 60 s; we aim for 15 s). Search defaults: {', '.join(d.params)} by "
+             f"under 60 s; we aim for 15 s). Search defaults: "
+             f"{', '.join(d.searched(records[0][2]))} by "
              f"{d.algorithm}, "
              f"budget {d.budget}, re-scored on {len(d.rescore_seeds)} more fiber seeds "
              f"(a backlit yarn outside the nets' range: the search in the table's last "

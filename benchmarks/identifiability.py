@@ -77,7 +77,7 @@ def run(data: str, names, yarns: int, scale: float, spp: int, seeds_per_eval: in
     > 0 the detail nets' readings of a detail window (module doc)."""
     from ipm.benchmarks.report import load_records
     from ipm.nets.ensemble import Ensemble
-    from ipm.refine.fit import match_colour, photo_tilt
+    from ipm.refine.measure import match_colour, photo_tilt
     from ipm.refine.objective import Detail, RenderObjective
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options

@@ -49,18 +49,19 @@ def profile(photo_file: Path, row: dict, pixel_size_mm: float, renderer) -> dict
     """Per group (and the pitch stage's weighted sum), the period (mm) at its lowest."""
     from ipm.dataset import Record
     from ipm.params import YarnParams
-    from ipm.refine.fit import FitOptions, search_objective
+    from ipm.refine.fit import search_objective
+    from ipm.refine.plan import FitConfig, plan
     from ipm.refine.stats import weighted_sum
 
-    options = FitOptions()
+    options = FitConfig()
     photo = Record(photo_file, pixel_size_mm, setup="backlit").photo()
     objective, _ = search_objective(photo, renderer, options)
-    stage = objective.stage_weights(("alpha_ply",), ("R_ply",))
+    stage = objective.stage_weights(plan(options, photo.setup).stages[-1])  # the ply twist
     params = YarnParams.from_dict(row["refined"])
     curves: dict[str, list[float]] = {g: [] for g in (*GROUPS, STAGE)}
     for period in PERIODS_MM:
         d = objective.group_distances(params.replace(alpha_ply=period * params.n),
-                                      options.search.fiber_seed)
+                                      options.fiber_seed)
         for g in GROUPS:
             curves[g].append(d[g])
         curves[STAGE].append(float(weighted_sum(d, stage)))
@@ -74,7 +75,7 @@ GRID = 25
 def weightings() -> dict[str, dict[str, float]]:
     """The group weightings compared on labelled sets: every group of the loss
     (:data:`ipm.refine.objective.DEFAULT_WEIGHTS`, which scored a search of the pitch alone
-    until :data:`ipm.refine.objective.PITCH_GROUPS`), and the groups that see the pitch,
+    until :attr:`ipm.setups.CaptureSetup.pitch_groups`), and the groups that see the pitch,
     alone and together, at their default weights."""
     from ipm.refine.objective import DEFAULT_WEIGHTS as w
 
@@ -93,14 +94,15 @@ def labelled_sweep(record, ensemble, renderer, options) -> dict:
     """The nets' guess of ``record``'s photo and each group's distance to the photo over a
     grid of ``alpha_ply`` in the default search's box (at the search's fiber seed), and at
     the guess over every seed of the search (its seed noise)."""
-    from ipm.refine.fit import match_colour, search_objective
+    from ipm.refine.fit import search_objective
+    from ipm.refine.measure import match_colour
     from ipm.refine.search import search_box
 
     photo = record.photo()
     sigma = ensemble.sigma(photo.pixel_size_mm)
     objective, small = search_objective(photo, renderer, options)
     neural = match_colour(objective, ensemble.predict(photo), small)
-    search = options.search
+    search = options
     lo, hi = search_box(neural, ("alpha_ply",), search.width, sigma, search.box_sigmas)
     values = np.linspace(lo[0], hi[0], GRID)
     along = [objective.group_distances(neural.replace(alpha_ply=float(v)), search.fiber_seed)
@@ -159,10 +161,10 @@ def labelled_main(args: argparse.Namespace) -> None:
     from ipm.dataset import MANIFEST
     from ipm.nets.ensemble import Ensemble
     from ipm.refine.compare import photos_in
-    from ipm.refine.fit import FitOptions
-    from ipm.refine.objective import PITCH_GROUPS
+    from ipm.refine.plan import FitConfig
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
+    from ipm.setups import setup_of
 
     if not (Path(args.data) / MANIFEST).is_file():
         raise SystemExit(f"{args.data} has no labels (a manifest.jsonl with parameters)")
@@ -174,14 +176,15 @@ def labelled_main(args: argparse.Namespace) -> None:
     renderer = Renderer(options=setup_options(setup))
     rows = []
     for i, record in enumerate(records):
-        rows.append(labelled_sweep(record, ensemble, renderer, FitOptions()))
+        rows.append(labelled_sweep(record, ensemble, renderer, FitConfig()))
         print(f"{i + 1}/{len(records)} {record.image.name}: truth {rows[-1]['truth']:.2f}, "
               f"nets {rows[-1]['neural']:.2f} mm", flush=True)
     head = markdown_header("Where the refine loss puts the ply pitch, from the nets' guess",
                            "python -m ipm.benchmarks.pitch_profile " + " ".join(sys.argv[1:]),
                            "mitsuba", "torch", "kornia")
-    note = (f"The search of `alpha_ply` alone is scored by {', '.join(PITCH_GROUPS[setup])} "
-            f"in the {setup} setup (`ipm.refine.objective.PITCH_GROUPS`).")
+    groups = ", ".join(setup_of(setup).pitch_groups)
+    note = (f"The search of `alpha_ply` alone is scored by {groups} "
+            f"in the {setup} setup (`ipm.setups`).")
     publish(head + "\n" + labelled_report(rows, args.data) + "\n\n" + note + "\n", args.out,
             rows)
 

@@ -9,12 +9,12 @@ Why: a fit chooses the ply count among the nets' likeliest by the loss
 stripes' period alone, which every count matches with its own pitch.  This isolates what the
 loss can see from what the search finds: the thickness stays the truth's, where a fit
 searches it per count.  The photos are prepared as ``ipm fit`` prepares them
-(:func:`ipm.refine.fit.search_view`, the yarn's tilt measured, the fiber colour matched at
+(:func:`ipm.refine.measure.search_view`, the yarn's tilt measured, the fiber colour matched at
 the truth); every render uses fiber seeds other than the photo's.
 
 With ``--start nets`` the renders start from the nets' guess instead, at their stripe
 period, scored by the fit's own objective and seeds: what a fit's choice of the count
-(:func:`ipm.refine.fit.choose_ply_count`) sees, with its thickness errors, and each
+(:func:`ipm.refine.measure.choose_ply_count`) sees, with its thickness errors, and each
 group's choice with the nets' probabilities as a fit weighs them.
 
     python -m ipm.benchmarks.ply_count_loss --data data/cycles-backlit \
@@ -45,7 +45,9 @@ def run(data: str, count: int, counts: list[int], spp: int, start: str = "truth"
     and records the nets' count and probabilities."""
     from ipm.benchmarks.report import load_records
     from ipm.nets.ensemble import Ensemble
-    from ipm.refine.fit import FitOptions, match_colour, search_objective
+    from ipm.refine.fit import search_objective
+    from ipm.refine.measure import match_colour
+    from ipm.refine.plan import FitConfig
     from ipm.refine.search import same_period
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
@@ -54,8 +56,8 @@ def run(data: str, count: int, counts: list[int], spp: int, start: str = "truth"
     setup = records[0].setup
     renderer = Renderer(options=setup_options(setup))
     ens = Ensemble.load(None, setup=setup) if start == "nets" else None
-    fit = FitOptions()
-    seeds = (fit.search.fiber_seed, *fit.search.rescore_seeds) if ens else SEEDS
+    fit = FitConfig()
+    seeds = (fit.fiber_seed, *fit.rescore_seeds) if ens else SEEDS
     rendered = replace(fit, spp=spp, seeds_per_eval=fit.seeds_per_eval if ens else 1)
     out = []
     for i, rec in enumerate(records):
@@ -99,7 +101,8 @@ def chosen(row: dict, weights: dict[str, float], prior: bool = False) -> int:
 
 
 def summary(rows: list[dict], data: str, command: str) -> str:
-    from ipm.refine.objective import COUNT_GROUPS, DEFAULT_WEIGHTS
+    from ipm.refine.objective import DEFAULT_WEIGHTS
+    from ipm.setups import setup_of
 
     nets = "nets_p" in rows[0]
     base = {g: w for g, w in DEFAULT_WEIGHTS.items() if w > 0}
@@ -126,13 +129,13 @@ def summary(rows: list[dict], data: str, command: str) -> str:
     head = markdown_header("Can the refine loss tell the ply count?", command, "mitsuba",
                            "torch", "kornia")
     if nets:
-        groups = COUNT_GROUPS[rows[0]["setup"]]
+        groups = setup_of(rows[0]["setup"]).count_groups
         how = ("the nets' guess rendered with each ply count, `alpha_ply` scaled to keep "
                "the nets' stripe period, the fit's objective and fiber seeds; with the nets' "
                "probabilities: the lowest loss in units of its seed noise minus the log "
                "probability (`ipm.refine.search.ply_count_scores`).  A fit chooses by "
                + (f"{', '.join(groups)} with the nets' probabilities" if groups
-                  else "nothing: it keeps the nets' count") + " (`COUNT_GROUPS`)")
+                  else "nothing: it keeps the nets' count") + " (`ipm.setups`)")
     else:
         how = (f"each photo's true yarn rendered with each ply count, `alpha_ply` scaled to "
                f"keep the stripes' period (mean of fiber seeds {list(SEEDS)})")

@@ -126,19 +126,16 @@ def main() -> None:
     from ipm.nets.ensemble import Ensemble
     from ipm.params import YarnParams
     from ipm.refine.compare import fit_all
-    from ipm.refine.fit import FitOptions
-    from ipm.refine.search import SearchOptions, search_stages_of
+    from ipm.refine.plan import FitConfig
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
     files = photo_files(args.photos)
     records = [Record(f, args.pixel_size, setup="backlit") for f in files]
     ensemble = Ensemble.load(args.models, setup="backlit")
-    stages = {} if args.params is None else search_stages_of(args.params)
-    search = SearchOptions(**stages, polish=args.polish,
-                           **({} if args.budget is None else {"budget": args.budget}))
-    options = FitOptions(search=search, ply_counts=args.ply_counts, match_size=args.match_size,
-                         outside=args.params is None and not args.no_prior)
+    options = FitConfig(params=args.params, polish=args.polish, ply_counts=args.ply_counts,
+                        match_size=args.match_size, prior=not args.no_prior,
+                        **({} if args.budget is None else {"budget": args.budget}))
     args.work.mkdir(parents=True, exist_ok=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     settings = {"photos": str(args.photos), "pixel_size_mm": args.pixel_size,
@@ -167,9 +164,9 @@ def main() -> None:
         if not target.is_file() or f.name not in captures:
             refined = YarnParams.from_dict(row["refined"])
             linear = render_over(renderer, refined, photo.shape, args.pixel_size,
-                                 row.get("tilt_deg", 0.0), search.fiber_seed)
+                                 row.get("tilt_deg", 0.0), options.fiber_seed)
             capture = matched_capture(resized(photo, linear.shape[:2]), linear,
-                                      MEASURE_PITCH_MM)
+                                      MEASURE_PITCH_MM, renderer.options.setup)
             write_png(target, in_capture(linear, capture, MEASURE_PITCH_MM))
             captures[f.name] = {"exposure_stops": capture.exposure_stops,
                                 "blur_mm": capture.blur_mm}

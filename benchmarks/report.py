@@ -43,7 +43,8 @@ from ipm.params import (
 )
 from ipm.photo import Photo
 from ipm.refine.compare import summary as refine_summary
-from ipm.refine.search import SearchOptions
+from ipm.refine.plan import FitConfig
+from ipm.setups import DEFAULT_SETUP
 
 PAPER = PAPER_VALIDATION_MAE
 #: The paper's costs (Experiments): generator, Blender render, training on three GPUs.
@@ -74,7 +75,7 @@ class BenchOptions:
     repeats: int = 5
     throughput_count: int = 40
     train_steps: int = 10
-    budget: int = SearchOptions.budget
+    budget: int = FitConfig.budget
 
     @classmethod
     def quick(cls) -> BenchOptions:
@@ -230,12 +231,12 @@ def refine_all(folder: Path, records: list, neural: list[dict], sigma: dict, bud
     """``ipm fit --refine`` with its defaults on each record, resumable: the loop of
     ``ipm compare`` (:func:`ipm.refine.compare.fit_all`) into ``folder/cache/refine.jsonl``."""
     from ipm.refine.compare import fit_all
-    from ipm.refine.fit import FitOptions
+    from ipm.refine.plan import FitConfig
 
     path = folder / "cache" / "refine.jsonl"
     path.parent.mkdir(parents=True, exist_ok=True)
     return fit_all(path, records, lambda i, _: YarnParams.from_dict(neural[i]),
-                   FitOptions(search=SearchOptions(budget=budget)),
+                   FitConfig(budget=budget),
                    None if sigma is None else (lambda _: sigma), progress=progress)
 
 
@@ -424,7 +425,8 @@ def markdown(results: dict, figures: dict[str, str], command: str) -> str:
               "stand as printed.", "",
               "## Ensemble + refinement", "",
               f"`ipm fit --refine` with its defaults (the search refines "
-              f"{', '.join(SearchOptions().params)}; the other parameters keep the nets' "
+              f"{', '.join(FitConfig().searched(DEFAULT_SETUP))}; the other parameters "
+              "keep the nets' "
               f"values) on {ref['count']} photos; the search kept a candidate other than the "
               "nets' guess "
               f"for {ref['improved']}; fit time per photo: median "

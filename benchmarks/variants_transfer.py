@@ -79,14 +79,14 @@ def real(approaches: dict, folder: Path, pixel_size_mm: float, crops: int, progr
     count right on the README's 2-ply photos, and the median relative difference of the
     stripe period and of the core diameter (the predicted yarn rendered over the photo's
     field of view)."""
-    from ipm.refine.search import SearchOptions
+    from ipm.refine.plan import FitConfig
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
     files = photo_files(folder)
     plies = readme_ply_counts(folder)
     renderer = Renderer(options=setup_options("backlit"))
-    seed = SearchOptions().fiber_seed
+    seed = FitConfig().fiber_seed
     rows: dict[str, list] = {name: [] for name in approaches}
     for i, f in enumerate(files):
         image = gray(str(f))

@@ -4,9 +4,9 @@ against its labels).
 
 ``DIR/manifest.jsonl`` holds one JSON object per image: ``index``, ``image`` (path relative
 to ``DIR``), ``params`` (flat :meth:`~ipm.params.YarnParams.to_dict`; the label),
-``pixel_size_mm``, ``setup`` (the capture setup, ``frontlit`` if absent), ``seed`` (the
-fiber seed) and whatever else the writer records about how the image was made (for ``ipm
-generate``: :mod:`ipm.render.dataset`).
+``pixel_size_mm``, ``setup`` (the capture setup, :data:`ipm.setups.DEFAULT_SETUP` if
+absent), ``seed`` (the fiber seed) and whatever else the writer records about how the
+image was made (for ``ipm generate``: :mod:`ipm.render.dataset`).
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import YarnParams
 from ipm.photo import Photo
+from ipm.setups import DEFAULT_SETUP
 
 MANIFEST = "manifest.jsonl"
 #: The files a folder of photos is made of.
@@ -37,7 +38,7 @@ class Record:
     pixel_size_mm: float = PIXEL_SIZE_MM
     params: YarnParams | None = None
     seed: int | None = None
-    setup: str = "frontlit"
+    setup: str = DEFAULT_SETUP
     index: int = 0
     info: dict[str, Any] = field(default_factory=dict)
 
@@ -56,7 +57,7 @@ class Record:
         seed = d.get("seed")
         return cls(Path(folder) / d["image"], float(d.get("pixel_size_mm", PIXEL_SIZE_MM)),
                    YarnParams.from_dict(d["params"]), None if seed is None else int(seed),
-                   str(d.get("setup", "frontlit")), int(d.get("index", index)),
+                   str(d.get("setup", DEFAULT_SETUP)), int(d.get("index", index)),
                    {k: v for k, v in d.items() if k not in _CORE})
 
 

@@ -13,6 +13,23 @@ PIXEL_SIZE_MM = 0.01
 FRAME_WIDTH_MM = FRAME_WIDTH_PX * PIXEL_SIZE_MM
 FRAME_HEIGHT_MM = FRAME_HEIGHT_PX * PIXEL_SIZE_MM
 
+
+def pixel_size_mm(scale: float) -> float:
+    """The pixel pitch (mm at the yarn) of the frame rendered at ``scale`` (1: the full
+    2000 x 600 px).  The same division turns a pitch into its scale, so it is its own
+    inverse: ``pixel_size_mm(pixel_size_mm(s)) == s``.
+
+    >>> pixel_size_mm(0.25), pixel_size_mm(0.04)
+    (0.04, 0.25)
+    """
+    return PIXEL_SIZE_MM / scale
+
+
+def pitch_factor(pixel_size_mm: float, scale: float = 1.0) -> float:
+    """How many scene pixels at ``scale`` one photo pixel of ``pixel_size_mm`` covers (> 1:
+    the photo is upsampled to reach the scene's pitch)."""
+    return pixel_size_mm * scale / PIXEL_SIZE_MM
+
 #: Margin of a generated yarn beyond the view it is rendered in, both sides together: fiber
 #: ends and small rotations of the yarn (photometric variation) stay out of view.
 YARN_MARGIN_MM = 6.0

@@ -24,7 +24,8 @@ import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
 
 from ipm.errors import UserError
-from ipm.frame import PIXEL_SIZE_MM
+from ipm.frame import PIXEL_SIZE_MM, pitch_factor
+from ipm.setups import AUTO_SETUP, DEFAULT_SETUP, lit, setup_of
 
 if TYPE_CHECKING:
     from ipm.params import YarnParams
@@ -158,12 +159,6 @@ def pixel_size_of(path: str | os.PathLike, pixel_size_mm: float | None = None,
                     "a millimetre scale taken with the same setup)")
 
 
-def pitch_factor(pixel_size_mm: float, scale: float = 1.0) -> float:
-    """How many scene pixels at ``scale`` one photo pixel of ``pixel_size_mm`` covers (> 1:
-    the photo is upsampled to reach the scene's pitch)."""
-    return pixel_size_mm * scale / PIXEL_SIZE_MM
-
-
 def to_scene_pitch(img: np.ndarray, pixel_size_mm: float, scale: float = 1.0) -> np.ndarray:
     """Resample ``(H, W, 3)`` so that one pixel covers ``PIXEL_SIZE_MM / scale`` mm.
 
@@ -218,17 +213,17 @@ def yarn_layout(gray: np.ndarray) -> tuple[float, float]:
     return float(max(rows, cols)), float(score)
 
 
-#: ``--setup auto``: the capture setup is told from the photo (:func:`detect_setup`).
-AUTO_SETUP = "auto"
-#: A border at least this bright (sRGB) with a yarn darker than it is a backlit capture (a
-#: frontlit yarn is lit, lighter than its dark card; real backlit captures can be dim).
-BACKLIT_BORDER = 0.3
+#: A border at least this bright (sRGB) with a yarn darker than it is a capture lit from
+#: behind (a yarn lit in front is lighter than its dark card; real captures lit from behind
+#: can be dim).
+LIGHT_BORDER = 0.3
 
 
 def detect_setup(image: np.ndarray) -> tuple[str, str]:
-    """(setup, why) of an sRGB photo (H, W, 3): ``backlit`` for a dark yarn on a light
-    background (a light panel or a microscope's lamp), else ``frontlit`` (a light yarn on
-    the dark card of the scene).  The background is the median of the border; the yarn,
+    """(setup, why) of an sRGB photo (H, W, 3): the setup lit from behind
+    (:mod:`ipm.setups`) for a dark yarn on a light background (a light panel or a
+    microscope's lamp), else the one lit in front (a light yarn on the dark card of the
+    scene).  The background is the median of the border; the yarn,
     the pixels that differ from it most."""
     gray = image.mean(axis=2)
     border = np.concatenate([gray[0], gray[-1], gray[:, 0], gray[:, -1]])
@@ -236,36 +231,28 @@ def detect_setup(image: np.ndarray) -> tuple[str, str]:
     diff = gray - background
     far = np.abs(diff) >= np.quantile(np.abs(diff), 0.9)
     darker = float(np.mean(diff[far])) < 0
-    if background >= BACKLIT_BORDER and darker:
-        return "backlit", f"a dark yarn on a light background, level {background:.2f}"
-    return "frontlit", (f"a {'dark' if darker else 'light'} yarn on a "
-                        f"{'light' if background >= BACKLIT_BORDER else 'dark'} background, "
+    if background >= LIGHT_BORDER and darker:
+        return lit(True), f"a dark yarn on a light background, level {background:.2f}"
+    return lit(False), (f"a {'dark' if darker else 'light'} yarn on a "
+                        f"{'light' if background >= LIGHT_BORDER else 'dark'} background, "
                         f"level {background:.2f}")
-
-
-def check_setup_name(setup: str) -> None:
-    """A one-line :class:`UserError` for a setup that is neither a scene's nor ``auto``."""
-    if setup != AUTO_SETUP:
-        from ipm.render.scene import setup_options
-
-        setup_options(setup)
 
 
 @dataclass(frozen=True)
 class Photo:
     """A yarn photo: ``image`` (H, W, 3) float32 sRGB in [0, 1], ``pixel_size_mm`` (one
-    pixel at the yarn), ``setup`` (``frontlit``: the scene's lighting), ``truth`` (the
+    pixel at the yarn), ``setup`` (its capture setup, :mod:`ipm.setups`), ``truth`` (the
     parameters of a render) and ``name`` (its file, for messages)."""
 
     image: np.ndarray
     pixel_size_mm: float = PIXEL_SIZE_MM
-    setup: str = "frontlit"
+    setup: str = DEFAULT_SETUP
     truth: YarnParams | None = None
     name: str = "the photo"
 
     @classmethod
     def read(cls, path: str | os.PathLike, pixel_size_mm: float = PIXEL_SIZE_MM,
-             setup: str = "frontlit", truth: YarnParams | None = None) -> Photo:
+             setup: str = DEFAULT_SETUP, truth: YarnParams | None = None) -> Photo:
         """Decode ``path`` (:func:`read_image`)."""
         return cls(read_image(path), pixel_size_mm, setup, truth, os.fspath(path))
 
@@ -310,7 +297,7 @@ class Photo:
         if setup != AUTO_SETUP:
             return replace(self, setup=setup), None
         chosen, why = detect_setup(self.image)
-        other = "frontlit" if chosen == "backlit" else "backlit"
+        other = lit(not setup_of(chosen).light_behind)
         return (replace(self, setup=chosen),
                 f"{self.name}: read as {chosen} ({why}); --setup {other} to read it otherwise")
 
@@ -328,7 +315,7 @@ class Photo:
         return self, None
 
     def inverted(self) -> Photo:
-        """The negative: a backlit capture (dark yarn on a light background) made to look
+        """The negative: a capture of a dark yarn on a light background made to look
         like the scene's light yarn on a dark card."""
         return replace(self, image=1 - self.image)
 

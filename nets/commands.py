@@ -9,8 +9,9 @@ from typing import Annotated
 import typer
 
 from ipm.errors import UserError
-from ipm.photo import AUTO_SETUP, CALIBRATION_HELP, PIXEL_SIZE_HELP
+from ipm.photo import CALIBRATION_HELP, PIXEL_SIZE_HELP
 from ipm.render.commands import ForceOpt, PhotoSetupOpt, SetupOpt
+from ipm.setups import AUTO_SETUP, DEFAULT_SETUP, INVERT_HELP
 
 _MODELS_HELP = ("folder with ensemble.json (an `ipm train --out`); default: the models "
                 "shipped for --setup")
@@ -55,7 +56,7 @@ def train(
     real_pixel_size: Annotated[float | None, typer.Option(help="pixel size of the --real "
                                                           "photos in mm")] = None,
     real_invert: Annotated[bool, typer.Option("--real-invert", help="invert the --real "
-                                              "photos (backlit: dark yarn on light)")] = False,
+                                              "photos (dark yarn on light)")] = False,
     blur: Annotated[float | None, typer.Option(help="blur each training crop by a Gaussian of "
                                                "sigma uniform in [0, BLUR] input pixels "
                                                "(a photo's defocus; 0 = off)")] = None,
@@ -66,7 +67,7 @@ def train(
     init: Annotated[Path | None, typer.Option(help="start each net from the trained net of "
                                               "the same name in this folder (fine-tuning; "
                                               "e.g. the shipped models)")] = None,
-    setup: SetupOpt = "frontlit",
+    setup: SetupOpt = DEFAULT_SETUP,
 ) -> None:
     """Train the nets of a preset on a synthetic dataset (resumable; torchrun for DDP).  The
     nets are for photos of one capture setup, that of the renders (--setup; recorded in
@@ -98,9 +99,7 @@ def predict(
     calibration: Annotated[Path | None, typer.Option(help=CALIBRATION_HELP)] = None,
     models: Annotated[Path | None, typer.Option(help=_MODELS_HELP)] = None,
     crops: Annotated[int, typer.Option(help="crops along the yarn to average")] = 3,
-    invert: Annotated[bool, typer.Option("--invert", help="invert the photo first (an odd "
-                                         "case, e.g. a negative; a backlit photo takes "
-                                         "--setup backlit)")] = False,
+    invert: Annotated[bool, typer.Option("--invert", help=INVERT_HELP)] = False,
     device: Annotated[str, typer.Option(help="cpu | cuda")] = "cpu",
     setup: PhotoSetupOpt = AUTO_SETUP,
     force: ForceOpt = False,

@@ -11,8 +11,7 @@ from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.nets.encoders import ENCODERS
 from ipm.nets.tasks import ENSEMBLE_TASKS, REG_TASKS, TASKS
-from ipm.photo import check_setup_name
-from ipm.render.scene import setup_options
+from ipm.setups import DEFAULT_SETUP, check_setup_name, setup_of
 
 
 @dataclass(frozen=True)
@@ -77,7 +76,7 @@ class TrainConfig:
     exposure_ev: float = 0.5
     blur_px: float = 0.0
     look: bool = False
-    setup: str = "frontlit"
+    setup: str = DEFAULT_SETUP
     steps_per_epoch: int | None = None
     seed: int = 0
     device: str = "cpu"
@@ -116,7 +115,7 @@ class TrainConfig:
         for name, value, ok in checks:
             if not ok:
                 raise UserError(f"{name} = {value} is out of range")
-        setup_options(self.setup)  # an unknown setup is one line naming the choices
+        setup_of(self.setup)  # an unknown setup is one line naming the choices
         if self.schedule not in SCHEDULES:
             raise UserError(f"unknown schedule {self.schedule!r}; one of {', '.join(SCHEDULES)}")
         if self.device.split(":")[0] not in ("cpu", "cuda", "mps"):
@@ -152,7 +151,7 @@ class PredictConfig:
     crops: int = 3
     invert: bool = False
     device: str = "cpu"
-    setup: str = "frontlit"
+    setup: str = DEFAULT_SETUP
 
     def __post_init__(self) -> None:
         check_setup_name(self.setup)  # an unknown setup is one line naming the choices

@@ -18,20 +18,21 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ipm import frame
 from ipm.errors import UserError
-from ipm.frame import PIXEL_SIZE_MM
+from ipm.frame import PIXEL_SIZE_MM, pitch_factor
 from ipm.nets.data import centre_crops
 from ipm.nets.model import YarnNet
 from ipm.nets.store import load_net, read_json
 from ipm.params import PARAM_ORDER, YarnParams
-from ipm.photo import Photo, pitch_factor
-from ipm.render.scene import setup_options
+from ipm.photo import Photo
+from ipm.setups import DEFAULT_SETUP, SETUPS, setup_of
 
 ENSEMBLE = "ensemble.json"
-#: Default models, shipped inside the package: the frontlit nets.
-SHIPPED = Path(__file__).parent / "models"
-#: The shipped nets of each capture setup (``ipm.render.scene.SETUPS``).
-SHIPPED_FOR = {"frontlit": SHIPPED, "backlit": Path(__file__).parent / "models-backlit"}
+#: The shipped nets of each capture setup (:attr:`ipm.setups.CaptureSetup.models`).
+SHIPPED_FOR = {name: Path(__file__).parent / s.models for name, s in SETUPS.items()}
+#: Default models: those of the default setup.
+SHIPPED = SHIPPED_FOR[DEFAULT_SETUP]
 #: How much a net's input may be upsampled from the photo before a finer net is not used.
 MAX_UPSAMPLING = 1.25
 
@@ -44,19 +45,20 @@ class Ensemble:
     nets: dict[str, YarnNet]
     info: dict[str, dict]
     folder: Path
-    setup: str = "frontlit"
+    setup: str = DEFAULT_SETUP
 
     @classmethod
     def load(cls, folder: str | Path | None = None, device: str = "cpu",
              setup: str | None = None) -> Ensemble:
         """Load the nets listed in ``folder/ensemble.json`` (default: those shipped for
-        ``setup``, frontlit if None); with ``setup`` given, nets trained on another setup's
-        renders are refused (they read such photos wrongly)."""
-        shipped = SHIPPED_FOR[setup_options(setup or "frontlit").setup]
+        ``setup``, the default setup's if None); with ``setup`` given, nets trained on another
+        setup's renders are refused (they read such photos wrongly)."""
+        name = setup_of(setup or DEFAULT_SETUP).name
+        shipped = SHIPPED_FOR[name]
         folder = Path(folder) if folder is not None else shipped
         if not (folder / ENSEMBLE).is_file():
-            hint = (f"no {setup or 'frontlit'} models are shipped in this build of ipm yet; "
-                    f"train them with `ipm train --setup {setup or 'frontlit'} --data DIR --val "
+            hint = (f"no {name} models are shipped in this build of ipm yet; "
+                    f"train them with `ipm train --setup {name} --data DIR --val "
                     "DIR --out runs/x` and pass --models runs/x" if folder == shipped else
                     "train with `ipm train ... --out DIR`")
             raise UserError(f"{folder} holds no trained models ({ENSEMBLE} missing); {hint}")
@@ -72,7 +74,7 @@ class Ensemble:
         if missing:
             raise UserError(f"the models in {folder} do not predict {', '.join(missing)} "
                             "(an unfinished run? train the remaining nets)")
-        trained_on = str(manifest.get("setup", "frontlit"))
+        trained_on = str(manifest.get("setup", DEFAULT_SETUP))
         if setup is not None and setup != trained_on:
             raise UserError(f"the models in {folder} were trained on {trained_on} renders, "
                             f"not {setup}: give --models of {setup} nets")
@@ -153,7 +155,7 @@ class Ensemble:
                         if pitch_factor(pixel_size_mm, net.config.input_scale) > MAX_UPSAMPLING)
         if not coarse:
             return None
-        finest = min(PIXEL_SIZE_MM / nets[n].config.input_scale for n in coarse)
+        finest = min(frame.pixel_size_mm(nets[n].config.input_scale) for n in coarse)
         return (f"the photo's pixels ({pixel_size_mm:g} mm) are coarser than the "
                 f"{', '.join(coarse)} net{'s' if len(coarse) > 1 else ''} need "
                 f"({finest:g} mm): upsampled, so these parameters are less reliable")
@@ -206,7 +208,7 @@ class Ensemble:
                       and not net.config.spec.is_classification)
         if not names:
             return (), 0.0
-        return names, PIXEL_SIZE_MM / self.nets[names[0]].config.input_scale
+        return names, frame.pixel_size_mm(self.nets[names[0]].config.input_scale)
 
     def detail_readings(self, pixel_size_mm: float):
         """``(readings, pitch_mm)``: :meth:`readings` of the :meth:`detail_nets` alone and
@@ -218,7 +220,7 @@ class Ensemble:
     def ply_count_probabilities(self, photo: Photo, crops: int = 3) -> dict[int, float]:
         """The ``n`` net's probability of each ply count for ``photo`` (empty without an
         ``n`` net): the prior of a fit's choice of the count
-        (:func:`ipm.refine.fit.choose_ply_count`)."""
+        (:func:`ipm.refine.measure.choose_ply_count`)."""
         prob = self.outputs(photo, crops, names=("n",)).get("n")
         if prob is None:
             return {}

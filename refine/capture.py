@@ -11,10 +11,11 @@ photo looks wrong.  So ``neural.png``, ``refined.png`` and ``compare.png`` are r
 the capture matched here, and ``params.json`` records it (``capture``).
 
 * Background level (:func:`background_level`, the median of the top and bottom rows),
-  brought to the photo's in linear light.  Backlit the background is the light itself, so
-  its level is the exposure (:attr:`Photometric.exposure_stops`); frontlit it is the card,
+  brought to the photo's in linear light.  Lit from behind (:mod:`ipm.setups`) the
+  background is the light itself, so its level is the exposure
+  (:attr:`Photometric.exposure_stops`); lit in front it is the card,
   whose grey is the scene's, not the camera's (the yarn's brightness is matched apart, by
-  its fibers' colour: :func:`ipm.refine.fit.match_colour`), so the card's albedo is scaled
+  its fibers' colour: :func:`ipm.refine.measure.match_colour`), so the card's albedo is scaled
   (:attr:`Photometric.backdrop_gain`, a render of its own).
 * Defocus: the blur at which the render's :func:`sharpness` falls to the photo's; none if
   the render is already as soft as the photo.
@@ -30,6 +31,7 @@ import torch
 from ipm.photo import defocus, linear_to_srgb, srgb_to_linear
 from ipm.refine.stats import yarn_centre
 from ipm.render.photometric import LOOK, NOMINAL, Photometric, apply_to_image
+from ipm.setups import setup_of
 
 #: The two bands (pixels) :func:`sharpness` compares: detail finer than a blur of the first
 #: against detail between the first and the second.
@@ -69,22 +71,17 @@ def sharpness(srgb: np.ndarray) -> float:
     return float((g - fine).std() / max(float((fine - coarse).std()), 1e-9))
 
 
-#: The capture setups whose background is the light itself, so that its level is the
-#: exposure; in the others it is a card, whose level is the card's albedo.
-LIGHT_BACKGROUND = ("backlit",)
-
-
 def matched_level(photo_srgb: np.ndarray, render_linear: np.ndarray, base: Photometric,
                   setup: str) -> Photometric:
     """``base`` with the background level of ``render_linear`` (H, W, 3, rendered in
     ``base``) brought to ``photo_srgb``'s (the same field of view): as the exposure in a
-    setup of :data:`LIGHT_BACKGROUND`, else as the card's albedo
+    setup lit from behind (its background is the light), else as the card's albedo
     (:attr:`Photometric.backdrop_gain`, which needs a render of its own)."""
     level = srgb_to_linear(np.float32(background_level(photo_srgb)))
     own = srgb_to_linear(np.float32(background_level(linear_to_srgb(render_linear))))
     stops = float(np.clip(np.log2(max(float(level), 1e-4) / max(float(own), 1e-4)),
                           -MAX_STOPS, MAX_STOPS))
-    if setup in LIGHT_BACKGROUND:
+    if setup_of(setup).light_behind:
         return replace(base, exposure_stops=base.exposure_stops + stops)
     return replace(base, backdrop_gain=base.backdrop_gain * 2.0 ** stops)
 
@@ -115,7 +112,7 @@ def matched_blur(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_size_m
 
 
 def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_size_mm: float,
-                    base: Photometric = NOMINAL, setup: str = "backlit") -> Photometric:
+                    setup: str, base: Photometric = NOMINAL) -> Photometric:
     """:func:`matched_level` and :func:`matched_blur` of one render (the blur measured before
     a card's new albedo, which hardly moves the sharpness of the yarn's edges)."""
     return matched_blur(photo_srgb, render_linear, pixel_size_mm,
@@ -123,11 +120,11 @@ def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_siz
 
 
 def card_warning(capture: Photometric, setup: str) -> str | None:
-    """A warning if a frontlit photo's card (:func:`matched_level`) is lighter or darker than
-    any the nets were trained on (:data:`ipm.render.photometric.LOOK`'s ``backdrop_gain``):
-    how the nets read lighter cards is in benchmarks/results/card_sweep.md."""
+    """A warning if a photo's card (:func:`matched_level`, lamps in front) is lighter or
+    darker than any the nets were trained on (:data:`ipm.render.photometric.LOOK`'s
+    ``backdrop_gain``): how the nets read lighter cards is in benchmarks/results/card_sweep.md."""
     lo, hi = LOOK["backdrop_gain"]
-    if setup in LIGHT_BACKGROUND or lo <= capture.backdrop_gain <= hi:
+    if setup_of(setup).light_behind or lo <= capture.backdrop_gain <= hi:
         return None
     return (f"the photo's background is a card {capture.backdrop_gain:.2g} times as light as "
             f"the scene's, outside the {lo:g}-{hi:g} the nets were trained on: they may "

@@ -26,15 +26,16 @@ from ipm.io import write_text
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
 from ipm.photo import Photo, pixel_size_of
 from ipm.refine.search import LEVEL
+from ipm.setups import DEFAULT_SETUP
 
 FITS = "fits.jsonl"
 
 
 @dataclass(frozen=True)
 class PhotoPrep:
-    """What is done to every photo before it is fitted: ``invert`` (backlit captures: a dark
-    yarn on a light background) and ``blur_mm``, a Gaussian blur of that sigma at the yarn
-    (in linear light), to measure the fit on photos less sharp than renders."""
+    """What is done to every photo before it is fitted: ``invert`` (negatives) and
+    ``blur_mm``, a Gaussian blur of that sigma at the yarn (in linear light), to measure the
+    fit on photos less sharp than renders."""
 
     invert: bool = False
     blur_mm: float = 0.0
@@ -54,11 +55,11 @@ def photos_in(folder: Path, pixel_size_mm: float | None, count: int | None = Non
               setup: str | None = None, calibration: Path | None = None) -> list[Record]:
     """The photos of ``folder`` sorted by name: a dataset's (with labels, pixel sizes and
     capture setup) if it holds a manifest, else every image file (of capture ``setup``,
-    frontlit if None) at its pixel size (``pixel_size_mm``, ``calibration`` or its sidecar:
-    :func:`ipm.photo.pixel_size_of`; a photo without one, or gone, gets an ``error`` in
-    its record's ``info``, reported in its row; if none has one, that is refused).
-    They must all be of one setup (``setup``, if given), since one ensemble and one scene
-    fit them."""
+    :data:`ipm.setups.DEFAULT_SETUP` if None) at its pixel size (``pixel_size_mm``,
+    ``calibration`` or its sidecar: :func:`ipm.photo.pixel_size_of`; a photo without one, or
+    gone, gets an ``error`` in its record's ``info``, reported in its row; if none has one,
+    that is refused).  They must all be of one setup (``setup``, if given), since one
+    ensemble and one scene fit them."""
     folder = Path(folder)
     if not folder.is_dir():
         raise UserError(f"{folder} is not a folder of photos")
@@ -69,10 +70,10 @@ def photos_in(folder: Path, pixel_size_mm: float | None, count: int | None = Non
         for p in photo_files(folder):
             try:
                 photos.append(Record(p, pixel_size_of(p, pixel_size_mm, calibration),
-                                     setup=setup or "frontlit"))
+                                     setup=setup or DEFAULT_SETUP))
             except UserError as e:  # this photo's: reported in its row, the others go on
                 errors.append(e)
-                photos.append(Record(p, float("nan"), setup=setup or "frontlit",
+                photos.append(Record(p, float("nan"), setup=setup or DEFAULT_SETUP,
                                      info={"error": str(e)}))
         if photos and len(errors) == len(photos):
             raise errors[0]  # (none has a pixel size: say it once)
@@ -86,13 +87,13 @@ def photos_in(folder: Path, pixel_size_mm: float | None, count: int | None = Non
     return photos[:count] if count else photos
 
 
-def fit_row(record: Record, photo: Photo, neural: YarnParams, renderer, options,
+def fit_row(record: Record, photo: Photo, neural: YarnParams, renderer, config,
             sigma: dict[str, float] | None, count_prior: dict[int, float] | None = None,
             readings=None, detail=None) -> dict:
     """``ipm fit --refine`` on one photo, as one JSON-ready row."""
     from ipm.refine.fit import fit
 
-    res = fit(photo, neural, renderer, options, sigma=sigma, readings=readings, detail=detail,
+    res = fit(photo, neural, renderer, config, sigma=sigma, readings=readings, detail=detail,
               count_prior=count_prior)
     return {"image": str(record.image), "neural": res.neural.to_dict(),
             "refined": res.refined.to_dict(), "loss_neural": res.loss_neural,
@@ -105,7 +106,7 @@ def fit_row(record: Record, photo: Photo, neural: YarnParams, renderer, options,
 
 
 def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Photo],
-            YarnParams], options, sigma_of: Callable[[Photo], dict[str, float]] | None,
+            YarnParams], config, sigma_of: Callable[[Photo], dict[str, float]] | None,
             prep: PhotoPrep = PhotoPrep(),
             progress: Callable[[int, int], None] | None = None,
             count_prior_of: Callable[[Photo], dict[int, float]] | None = None,
@@ -153,7 +154,7 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
                 row = {"image": str(photos[i].image), "error": str(e)}
             else:
                 renderer = renderer or Renderer(options=setup_options(photo.setup))
-                row = fit_row(photos[i], photo, neural, renderer, options,
+                row = fit_row(photos[i], photo, neural, renderer, config,
                               sigma_of(photo) if sigma_of else None,
                               count_prior_of(photo) if count_prior_of else None, readings,
                               detail_of(photo) if detail_of else None)
@@ -234,10 +235,11 @@ def _mae_of(k: str, labelled: list[tuple[dict, YarnParams]]) -> dict:
     return {"photos": len(labelled), **errors}
 
 
-def reported(options) -> tuple[str, ...]:
-    """The parameters a report of fits with ``options`` (:class:`ipm.refine.fit.FitOptions`)
-    shows: the continuous raw-yarn ones, then any other its search moves (flyaways)."""
-    return RAW_CONTINUOUS + tuple(dict.fromkeys(k for k in options.search.searched
+def reported(config, setup: str) -> tuple[str, ...]:
+    """The parameters a report of fits with ``config`` (:class:`ipm.refine.plan.FitConfig`)
+    of photos of ``setup`` shows: the continuous raw-yarn ones, then any other the stages
+    asked for move (flyaways)."""
+    return RAW_CONTINUOUS + tuple(dict.fromkeys(k for k in config.searched(setup)
                                                 if k not in RAW_CONTINUOUS))
 
 
@@ -317,42 +319,45 @@ def contact_sheet(path: Path, rows: list[dict], photos: Sequence[Record], picks:
                   display_scale: float = 0.25) -> None:
     """photo | neural | refined for the rows ``picks``, each labelled ``tags[i]`` and its
     losses, rendered with the fit's fiber seed in the shared scene, shown in the photo's
-    capture (:func:`ipm.refine.fit.display_renders`)."""
+    capture (:func:`ipm.refine.display.display_renders`)."""
     from ipm.photo import write_png
-    from ipm.refine.fit import FitOptions, FitResult, compare_image, display_renders
+    from ipm.refine.display import compare_image, display_renders
+    from ipm.refine.fit import FitResult
+    from ipm.refine.plan import FitConfig
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
     renderer = Renderer(options=setup_options(photos[picks[0]].setup)) if picks else None
-    options = FitOptions(display_scale=display_scale, display_spp=16)
+    config = FitConfig(display_scale=display_scale, display_spp=16)
     panels, labels = [], []
     for i in picks:
         r = rows[i]
         res = FitResult(YarnParams.from_dict(r["neural"]), YarnParams.from_dict(r["refined"]),
                         r["loss_neural"], r["loss_refined"], r["improved"],
                         tilt_deg=r.get("tilt_deg", 0.0))
-        panels += list(display_renders(renderer, prep.load(photos[i]), res, options)[:3])
+        panels += list(display_renders(renderer, prep.load(photos[i]), res, config)[:3])
         labels += [f"{tags[i]}: {Path(r['image']).name}", f"neural  loss {r['loss_neural']:.4f}",
                    f"refined  loss {r['loss_refined']:.4f}"]
     write_png(path, compare_image(panels, labels))
 
 
-def compare(photos: Sequence[Record], out: Path, ensemble, options, prior: bool = True,
+def compare(photos: Sequence[Record], out: Path, ensemble, config,
             prep: PhotoPrep = PhotoPrep(), figure_count: int = 4, progress=None,
             command: str = "ipm compare") -> dict:
     """Fit every photo (:func:`photos_in`), resuming a stopped run in ``out``, and write the
     report; returns the summary."""
     truth = [p.params for p in photos]
     out.mkdir(parents=True, exist_ok=True)
-    every = fit_all(out / FITS, photos, lambda i, photo: ensemble.predict(photo), options,
-        (lambda photo: ensemble.sigma(photo.pixel_size_mm)) if prior else None, prep,
+    every = fit_all(out / FITS, photos, lambda i, photo: ensemble.predict(photo), config,
+        (lambda photo: ensemble.sigma(photo.pixel_size_mm)) if config.prior else None, prep,
         progress, ensemble.ply_count_probabilities, ensemble.readings,
         lambda photo: ensemble.detail_readings(photo.pixel_size_mm))
     fitted = [i for i, r in enumerate(every) if "error" not in r]
     rows, truth, photos = ([seq[i] for i in fitted] for seq in (every, truth, photos))
-    s = summary(rows, truth, reported(options))
+    shown = reported(config, ensemble.setup)
+    s = summary(rows, truth, shown)
     s["failed"] = [r for r in every if "error" in r]
-    write_text(out / "results.csv", csv_text(rows, truth, reported(options)))
+    write_text(out / "results.csv", csv_text(rows, truth, shown))
     figure = None
     if figure_count and rows:
         gain = [r["loss_neural"] - r["loss_refined"] for r in rows]

@@ -9,14 +9,14 @@ is deterministic for a given fiber seed: the render seed is fixed.
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
 import torch
 
-from ipm.frame import PIXEL_SIZE_MM, YARN_LENGTH_MM, view_yarn_length
+from ipm.frame import YARN_LENGTH_MM, pixel_size_mm, view_yarn_length
 from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb
 from ipm.prior import FLYAWAY_RANGES
@@ -37,37 +37,15 @@ from ipm.render.scene import Frame
 #: their wide basin (:func:`ipm.refine.stats._axial_spectrum_cdf`).  The other groups add
 #: seed noise for less (the histogram at its former weight 10 made most of the loss's
 #: noise), so they are off.  The silhouette's edges tell an even ply count from an odd one,
-#: which the stripes' period cannot (``python -m ipm.benchmarks.ply_count_loss``,
-#: benchmarks/results/ply_count_loss_cycles_backlit.md; the real photos' ply counts in
-#: docs/real-photos-silhouette).  The contour reads the ply period off the core's outline,
-#: where the stripes inside a real photo's grey core and a render's opaque one differ; with
-#: it the real photos' fitted periods came nearer theirs (docs/real-photos-contour against
-#: docs/real-photos-material), though alone it is not where the period's minimum is
-#: (benchmarks/results/pitch_profile_real.md).
+#: which the stripes' period cannot (``python -m ipm.benchmarks.ply_count_loss``; the real
+#: photos' ply counts in docs/real-photos-silhouette).  The contour reads the ply period
+#: off the core's outline, where the stripes inside a real photo's grey core and a render's
+#: opaque one differ; with it the real photos' fitted periods came nearer theirs
+#: (docs/real-photos-contour against docs/real-photos-material), though alone it is not
+#: where the period's minimum is (benchmarks/results/pitch_profile_real.md).
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
                    "period": 1.0, "stripes": 2.0, "silhouette": 1.0, "contour": 0.25,
                    "histogram": 0.0}
-#: The thickness parameters: a stage moving them without the ply pitch is scored without the
-#: ``contour`` group (:meth:`RenderObjective.for_stage`).
-THICKNESS = ("R_ply", "r_x", "r_y")
-#: The groups that score a stage moving ``alpha_ply`` alone, per capture setup: those that
-#: read the ply period.  The core profile and the silhouette read the thickness too, and a
-#: search of the pitch alone keeps the nets' thickness: a ply twist tighter or looser than
-#: the photo's then makes up for a ply radius the nets got wrong, and from the nets' guess
-#: every group of the loss put the pitch further from the truth than the nets on validation
-#: renders, frontlit; the contour, the outline's period, helps backlit, where the outline is
-#: a crisp silhouette, and does not frontlit (``python -m ipm.benchmarks.pitch_profile --data
-#: data-frontlit/val``, the same for backlit: benchmarks/results/pitch_profile_*_val.md).
-PITCH_GROUPS = {"frontlit": ("period", "stripes"),
-                "backlit": ("period", "stripes", "contour")}
-#: The groups that choose the ply count before the search, per capture setup
-#: (:func:`ipm.refine.fit.choose_ply_count`); none: the nets' count stands.  Backlit, the
-#: silhouette, whose two edges move together for an even count and against each other for
-#: an odd one; with the count's stripe period kept from the nets' guess, the other groups
-#: chose the count worse than it, and frontlit no group chose it better than the nets
-#: (``python -m ipm.benchmarks.ply_count_loss --start nets --data data-backlit/val``, the
-#: same for frontlit: benchmarks/results/ply_count_nets_*_val.md).
-COUNT_GROUPS = {"frontlit": (), "backlit": ("silhouette",)}
 #: How many (params, seed) pairs' render statistics a :class:`RenderObjective` keeps.
 STATS_KEPT = 64
 #: The weight of the ``flyaways`` group in a search that moves flyaway parameters.
@@ -117,7 +95,7 @@ class Detail:
         its core across it (:func:`ipm.refine.stats.yarn_centre`), as the renders' window
         is on theirs."""
         frame = Frame(*DETAIL_WINDOW, pitch_mm)
-        image = photo.at_pitch(PIXEL_SIZE_MM / pitch_mm)
+        image = photo.at_pitch(pixel_size_mm(pitch_mm))  # the scale of that pitch
         h, w = min(frame.height, image.shape[0]), min(frame.width, image.shape[1])
         _, centre = yarn_centre(to_tensor(image).mean(dim=1, keepdim=True))
         top = int(np.clip(round(float(centre[0])) - h // 2, 0, image.shape[0] - h))
@@ -146,7 +124,7 @@ class RenderObjective:
     ``readings(image, pixel_size_mm) -> {group: (1, K) tensor}`` (the nets' readings,
     :meth:`ipm.nets.ensemble.Ensemble.readings`), computed alike on the photo and every
     render and weighted by ``readings_weight``.  ``frame``: render only this view (a
-    photo's smaller field of view, at its pitch, :func:`ipm.refine.fit.search_view`)
+    photo's smaller field of view, at its pitch, :func:`ipm.refine.measure.search_view`)
     instead of the yarn frame at ``scale``.  ``detail``: a second view rendered and compared
     per evaluation (:class:`Detail`).  ``evaluations`` counts renders of the main view.
     The statistics of the last :data:`STATS_KEPT` (params, seed) pairs are kept: a fit
@@ -160,7 +138,7 @@ class RenderObjective:
                  seeds_per_eval: int = 1, tilt_deg: float = 0.0,
                  readings: Readings | None = None, readings_weight: float = 1.0,
                  frame: Frame | None = None, detail: Detail | None = None) -> None:
-        from ipm.render.scene import frame_size, pixel_size_mm
+        from ipm.render.scene import frame_size
 
         w, h = frame_size(scale) if frame is None else (frame.width, frame.height)
         self.size = (min(h, photo.shape[0]), min(w, photo.shape[1]))
@@ -205,7 +183,7 @@ class RenderObjective:
     def render_detail(self, params: YarnParams, seed: int) -> np.ndarray:
         """The sRGB render of the :class:`Detail` window."""
         d = self.detail
-        scale = PIXEL_SIZE_MM / d.frame.pixel_size_mm
+        scale = pixel_size_mm(d.frame.pixel_size_mm)
         return linear_to_srgb(self.renderer.render(params, seed, scale, d.spp,
                                                    self.render_seed, self.capture, d.frame))
 
@@ -244,42 +222,19 @@ class RenderObjective:
         return float(stat_distance(self._mean_stats(params, seed), self.photo_stats,
                                    self.weights if weights is None else weights)[0])
 
-    def for_stage(self, names: Sequence[str], earlier: Sequence[str] = ()
-                  ) -> Callable[[YarnParams, int], float]:
-        """The objective of a search stage moving ``names`` after stages that moved
-        ``earlier`` (:func:`ipm.refine.search.search_stages`), scored by the groups that see
-        those parameters:
-
-        * flyaway parameters alone: the ``flyaways`` group alone.  Flyaways that cross the
-          core band move the period and stripes groups too, and on a real photo a grid of
-          flyaway amounts and lengths moved those more than the flyaway group: scored by
-          every group, that stage would follow the stripes;
-        * ``alpha_ply`` alone: the groups that read the ply period, :data:`PITCH_GROUPS`
-          of the renderer's capture setup.  The core profile depends on the ply pitch
-          too, and a thickness fitted at, or kept from, the nets' pitch holds the core
-          profile there: on the real photos the core group pulled the pitch back towards
-          the nets' (often twice the photo's stripe period) where the stripes put it at the
-          photo's (docs/real-photos-flyaways against docs/real-photos-pitch);
-        * the thickness (``R_ply``, ``r_x``, ``r_y``) without ``alpha_ply``: every group
-          but the ``contour``.  At a pitch not yet fitted, the outline's period is wrong,
-          and plies flattened to half their width bump the outline twice as often: on the
-          real photos, a thickness stage scored with the contour left the pitch stage after
-          it at about twice the photo's period on several photos (docs/real-photos-contour
-          against docs/real-photos-contour-pitch);
-        * any other: the objective itself."""
-        weights = self.stage_weights(names, earlier)
+    def for_stage(self, stage) -> Callable[[YarnParams, int], float]:
+        """The objective of a search ``stage`` (:class:`ipm.refine.search.Stage`; why each
+        stage is scored as it is: :mod:`ipm.refine.plan`): the groups its ``scored_by``
+        names, or all but its ``without``, at their weights in this objective; the
+        objective itself if the stage is scored by the whole loss."""
+        weights = self.stage_weights(stage)
         return self if weights is None else partial(self, weights=weights)
 
-    def stage_weights(self, names: Sequence[str], earlier: Sequence[str] = ()
-                      ) -> dict[str, float] | None:
-        """The group weights :meth:`for_stage` scores a stage with; None for the objective's
-        own."""
-        if names and all(k in FLYAWAY_RANGES for k in names):
-            groups = {"flyaways": FLYAWAY_WEIGHT}
-        elif tuple(names) == ("alpha_ply",):
-            groups = {k: self.weights[k] for k in PITCH_GROUPS[self.setup]}
-        elif set(names) & set(THICKNESS) and "alpha_ply" not in names:
-            groups = {k: w for k, w in self.weights.items() if k != "contour"}
-        else:
+    def stage_weights(self, stage) -> dict[str, float] | None:
+        """The group weights :meth:`for_stage` scores ``stage`` with; None for the
+        objective's own."""
+        if stage.scored_by is None and not stage.without:
             return None
-        return {k: groups.get(k, 0.0) for k in self.photo_stats}
+        kept = [k for k in self.photo_stats if k not in stage.without
+                and (stage.scored_by is None or k in stage.scored_by)]
+        return {k: self.weights.get(k, 0.0) if k in kept else 0.0 for k in self.photo_stats}

@@ -34,8 +34,8 @@ from ipm.params import PAPER_INTERVALS, YarnParams, clipped
 from ipm.prior import FLYAWAY_RANGES, GAMMA_DEG
 
 #: An objective: the loss of the yarn ``params`` rendered with fiber seed ``seed``.  One with
-#: a ``for_stage(names, earlier)`` method (:class:`ipm.refine.objective.RenderObjective`)
-#: gives each stage of :func:`search_stages` the objective that stage is searched with.
+#: a ``for_stage(stage)`` method (:class:`ipm.refine.objective.RenderObjective`) gives each
+#: :class:`Stage` of :func:`search_stages` the objective that stage is searched with.
 Objective = Callable[[YarnParams, int], float]
 
 #: The probability the intervals are meant to hold the truth with.
@@ -43,21 +43,6 @@ LEVEL = 0.8
 #: How far above its lowest the objective (in seed-noise units) may lie inside an interval:
 #: half the LEVEL quantile of a chi-square of one degree of freedom.
 PROFILE_RISE = 0.5 * float(chi2.ppf(LEVEL, 1))
-#: How many of the nets' most likely ply counts a fit searches with (``ipm.refine.fit``):
-#: one, since the loss sees the stripe period ``alpha_ply / n`` and, given two counts, it
-#: matched the period with the wrong one as often as not (docs/compare-two-ply-counts
-#: against docs/compare, before the loss's ``silhouette`` group).  With that group, two
-#: counts and a thickness stage chose the count better on the real photos and on Cycles
-#: renders (docs/real-photos-silhouette, docs/compare-cycles-backlit-silhouette) at twice
-#: the time; not yet measured with the default search, so the default stays one.  (A
-#: backlit fit chooses the count its pitch stage starts from, by the silhouette at the
-#: nets' stripe period: :func:`ipm.refine.fit.choose_ply_count`.)
-DEFAULT_PLY_COUNTS = 1
-#: The weight of the nets' readings in a fit's loss (:class:`ipm.refine.fit.FitOptions`).
-DEFAULT_LEARNED = 0.0
-#: The least probability the nets give their ply count for a fit that keeps it to search the
-#: ply pitch (``sure_count`` of :class:`ipm.refine.fit.FitOptions`, which says why).
-SURE_COUNT = 0.5
 
 #: The parameters a search can move: all but the ply count ``n``, which a fit chooses among the
 #: nets' most likely counts (:func:`search_ply_counts`).  An integer parameter (``m``, ``g``)
@@ -79,31 +64,22 @@ ALGORITHMS = ("LN_BOBYQA", "LN_SBPLX", "LN_NELDERMEAD", "LN_COBYLA", "GN_DIRECT_
 
 @dataclass(frozen=True)
 class SearchOptions:
-    """params: parameters to search (:data:`SEARCHABLE`).  By default only alpha_ply, with
-    DIRECT-L, a global search of the box: the autocorrelation has side minima in alpha_ply
-    that trap a local search such as BOBYQA; it is scored by the groups of the loss that
-    read the ply period (:data:`ipm.refine.objective.PITCH_GROUPS`).  The loss also has
-    its minimum at the truth for R_ply and r_x (docs/identifiability.md), but a second
-    stage searching them from alpha_ply's best moved them further from the truth than the
-    nets' values (docs/compare-staged), and the image statistics do not see alpha, so they
-    keep the nets' values (the detail nets' readings do, ``--detail``, but a search with
-    them is not yet measured to help: benchmarks/README.md, "Neural-only vs refined").
-
-    algorithm: an NLopt derivative-free algorithm.  budget: objective evaluations of the
-    search (re-scoring comes on top).  time_s: wall-time bound of the search.  width:
-    half-width of the box around the start, as a fraction of each parameter's prior range.
-    fiber_seed: the seed of the search's objective; rescore_seeds, rescore_top: the
-    re-scoring described in the module doc.  later: further stages, each a tuple of
-    parameters searched (with the same algorithm and budget) from the stage before's best
-    (:func:`search_stages`); ``stages`` is all of them.  polish: evaluations of a local
-    search (:data:`POLISH_ALGORITHM`) from the best point of each stage of two or more
-    parameters, at the scale of the global search's finest cells: DIRECT-L with 30
-    evaluations in three parameters only samples a grid of ninths of the box, and the fits
-    of different photos landed on the same grid points (docs/real-photos-staged).  In one
+    """How one stage is searched (:class:`ipm.refine.plan.FitConfig` makes them).
+    params: parameters to search (:data:`SEARCHABLE`).  algorithm: an NLopt
+    derivative-free algorithm (DIRECT-L, a global search of the box, by default: the
+    autocorrelation has side minima in alpha_ply that trap a local search such as BOBYQA).
+    budget: objective evaluations of the search (re-scoring comes on top).  time_s:
+    wall-time bound of the search.  width: half-width of the box around the start, as a
+    fraction of each parameter's prior range.  fiber_seed: the seed of the search's
+    objective; rescore_seeds, rescore_top: the re-scoring described in the module doc.
+    polish: evaluations of a local search (:data:`POLISH_ALGORITHM`) from the best point, if the
+    stage has two or more parameters, at the scale of the global search's finest cells: DIRECT-L
+    with 30 evaluations in three parameters only samples a grid of ninths of the box, and the
+    fits of different photos landed on the same grid points (docs/real-photos-staged).  In one
     parameter its cells are already a few hundredths of the box, and polishing `alpha_ply`
     followed one fiber seed's side minima of the stripe loss instead
-    (docs/real-photos-polish-every-stage against docs/real-photos-staged).  keep_cover: a
-    stage that moves the ply radii ``r_x``, ``r_y`` but not ``m`` scales ``m`` with them
+    (docs/real-photos-polish-every-stage against docs/real-photos-staged).  keep_cover: a stage
+    that moves the ply radii ``r_x``, ``r_y`` but not ``m`` scales ``m`` with them
     (:func:`same_cover`)."""
 
     params: tuple[str, ...] = ("alpha_ply",)
@@ -116,28 +92,18 @@ class SearchOptions:
     rescore_top: int = 3
     prior_weight: float = 1.0
     box_sigmas: float = 3.0
-    later: tuple[tuple[str, ...], ...] = ()
     polish: int = 0
     keep_cover: bool = False
 
-    @property
-    def stages(self) -> tuple[tuple[str, ...], ...]:
-        return (self.params, *self.later)
-
-    @property
-    def searched(self) -> list[str]:
-        """Every parameter of every stage, in the stages' order."""
-        return [k for stage in self.stages for k in stage]
-
     def __post_init__(self) -> None:
-        bad = [p for p in self.searched if p not in SEARCHABLE]
-        if bad or not all(self.stages):
+        bad = [p for p in self.params if p not in SEARCHABLE]
+        if bad or not self.params:
             raise UserError(f"cannot search {bad or 'no parameters'}: choose among "
                             f"{', '.join(SEARCHABLE)} (the ply count takes --ply-counts)")
         if self.algorithm not in ALGORITHMS:
             raise UserError(f"unknown algorithm {self.algorithm!r}; choose one of "
                             f"{', '.join(ALGORITHMS)}")
-        most, least = max(len(stage) for stage in self.stages), least_budget(self.stages)
+        most, least = len(self.params), least_budget((self.params,))
         if self.budget < least:
             raise UserError(f"budget must be at least {least} evaluations for {most} "
                             f"parameters, got {self.budget}")
@@ -159,11 +125,45 @@ def least_budget(stages: Sequence[Sequence[str]]) -> int:
     return 2 * max(len(stage) for stage in stages) + 2
 
 
-def search_stages_of(text: str) -> dict[str, tuple]:
-    """``params`` and ``later`` of :class:`SearchOptions` from ``a,b;c`` (``ipm fit
-    --params``): stages separated by ``;``, their parameters by ``,``."""
-    stages = [tuple(p.strip() for p in part.split(",") if p.strip()) for part in text.split(";")]
-    return {"params": stages[0], "later": tuple(stages[1:])}
+def parse_stages(text: str) -> tuple[tuple[str, ...], ...]:
+    """The parameters of each stage of ``a,b;c`` (``ipm fit --params``): stages separated by
+    ``;``, their parameters by ``,``.
+
+    >>> parse_stages("R_ply, r_x;alpha_ply")
+    (('R_ply', 'r_x'), ('alpha_ply',))
+    """
+    return tuple(tuple(p.strip() for p in part.split(",") if p.strip())
+                 for part in text.split(";"))
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One step of a staged search (:func:`search_stages`): ``name`` for the user;
+    ``search``, how its parameters are searched, or None for the choice of the ply count
+    (the ``choose`` of :func:`search_stages`); the loss it is scored by: the groups
+    ``scored_by`` alone, else the whole loss but the groups ``without`` (a group of the
+    whole loss keeps its weight)."""
+
+    name: str
+    search: SearchOptions | None = None
+    scored_by: tuple[str, ...] | None = None
+    without: tuple[str, ...] = ()
+
+    @property
+    def params(self) -> tuple[str, ...]:
+        return self.search.params if self.search else ()
+
+    def to_dict(self) -> dict:
+        """What ``params.json`` and ``ipm fit --dry-run`` show of the stage."""
+        out: dict = {"name": self.name, "params": list(self.params),
+                     "scored_by": ("the whole loss" if self.scored_by is None else
+                                   list(self.scored_by))}
+        if self.without:
+            out["without"] = list(self.without)
+        if self.search:
+            out |= {"budget": self.search.budget, "polish": self.search.polish,
+                    "keep_cover": self.search.keep_cover}
+        return out
 
 
 @dataclass
@@ -399,39 +399,40 @@ def _offset(on_eval: Callable[[int, float, float], None] | None, results: list[S
     return on_eval and (lambda i, loss, best: on_eval(done + i, loss, best))
 
 
-def search_stages(objective: Objective, start: YarnParams, opts: SearchOptions = SearchOptions(),
+def search_stages(objective: Objective, start: YarnParams, stages: Sequence[Stage],
                   on_eval: Callable[[int, float, float], None] | None = None,
                   sigma: dict[str, float] | None = None,
                   choose: Callable[[YarnParams], YarnParams] | None = None) -> SearchResult:
-    """:func:`search` of each of ``opts.stages`` in turn, each from the stage before's best
-    (a staged search: the parameters the loss sees most first), with the objective's
-    ``for_stage`` if it has one.  ``choose``: applied to the best so far before a later
-    stage that moves ``alpha_ply`` (the ply count's choice after the thickness stages,
-    :func:`ipm.refine.fit.choose_ply_count`; the first stage starts from ``start`` as
-    given).  Improved if any stage moved away from its start or ``choose`` changed the
-    count and, when a stage was searched with an objective of its own or the count changed,
-    the objective's loss (mean over the seeds) is no higher at the end than at the start: a
-    stage decides by the groups that see its parameters, and the whole loss must not
-    disagree."""
+    """:func:`search` of each of ``stages`` in turn, each from the stage before's best (a
+    staged search: the parameters the loss sees most first), with the objective's
+    ``for_stage`` if it has one; a stage without a search applies ``choose`` (the ply
+    count's choice, :func:`ipm.refine.measure.choose_ply_count`; none: it is skipped) to
+    the best so far.  Improved if any stage moved away from its start or ``choose`` changed
+    the count and, when a stage was searched with an objective of its own or the count
+    changed, the objective's loss (mean over the seeds) is no higher at the end than at the
+    start: a stage decides by the groups that see its parameters, and the whole loss must
+    not disagree."""
     results: list[SearchResult] = []
     own: list[bool] = []  # whether a stage was searched with ``objective`` itself
     current = start
     changed = False
-    for i, names in enumerate(opts.stages):
-        if choose is not None and i > 0 and "alpha_ply" in names:
-            chosen, choose = choose(current), None
-            changed, current = chosen.n != current.n, chosen
-        stage = replace(opts, params=names, later=())
-        earlier = [k for before in opts.stages[:i] for k in before]
-        of_stage = (objective.for_stage(names, earlier) if hasattr(objective, "for_stage")
+    searched = [stage for stage in stages if stage.search is not None]
+    for stage in stages:
+        if stage.search is None:
+            if choose is not None:
+                chosen = choose(current)
+                changed, current = changed or chosen.n != current.n, chosen
+            continue
+        of_stage = (objective.for_stage(stage) if hasattr(objective, "for_stage")
                     else objective)
         own.append(of_stage is objective)
-        results.append(search(of_stage, current, stage, _offset(on_eval, results), sigma))
+        results.append(search(of_stage, current, stage.search, _offset(on_eval, results),
+                              sigma))
         current = results[-1].best
+    seeds = (searched[0].search.fiber_seed, *searched[0].search.rescore_seeds)
 
     def rescored(p: YarnParams) -> float:
-        return float(np.mean([_finite(objective(p, s))
-                              for s in (opts.fiber_seed, *opts.rescore_seeds)]))
+        return float(np.mean([_finite(objective(p, s)) for s in seeds]))
 
     # the losses reported at both ends are the objective's own, whatever the stages' were
     if not own[0]:
@@ -447,7 +448,8 @@ def search_stages(objective: Objective, start: YarnParams, opts: SearchOptions =
 
 
 def search_ply_counts(objective: Objective, neural: YarnParams, counts: Sequence[int],
-                      opts: SearchOptions, on_eval: Callable[[int, float, float], None] | None,
+                      stages: Sequence[Stage],
+                      on_eval: Callable[[int, float, float], None] | None,
                       sigma: dict[str, float] | None,
                       choose: Callable[[YarnParams], YarnParams] | None = None
                       ) -> SearchResult:
@@ -461,8 +463,8 @@ def search_ply_counts(objective: Objective, neural: YarnParams, counts: Sequence
     results: list[SearchResult] = []
     for n in counts:
         start = neural if n == neural.n else same_period(neural, n) or neural.replace(n=n)
-        results.append(search_stages(objective, start, opts, _offset(on_eval, results), sigma,
-                                     choose))
+        results.append(search_stages(objective, start, stages, _offset(on_eval, results),
+                                     sigma, choose))
     if len(results) == 1:
         return results[0]
     best = min(results, key=lambda r: r.best_loss)

@@ -13,19 +13,16 @@ import typer
 from ipm.errors import UserError
 from ipm.io import check_not_inputs, check_output
 from ipm.params import YARN_HELP
+from ipm.setups import DEFAULT_SETUP, PHOTO_SETUP_HELP, SETUP_HELP
 
 DEFAULT_RENDER_SCALE = 0.25
 DEFAULT_RENDER_SPP = 16
 VariantOpt = Annotated[str | None, typer.Option(
     help="Mitsuba variant: llvm_ad_rgb (default, CPU), cuda_ad_rgb or scalar_rgb; "
          "also the IPM_VARIANT environment variable")]
-SetupOpt = Annotated[str, typer.Option(
-    help="capture setup: frontlit (colour macro photo under soft boxes, the paper's) or "
-         "backlit (grey silhouette on a light panel, as hairiness testers and microscopes)")]
+SetupOpt = Annotated[str, typer.Option(help=SETUP_HELP)]
 
-PhotoSetupOpt = Annotated[str, typer.Option(
-    help="capture setup of the photo: frontlit, backlit, or auto (told from the photo: a dark "
-         "yarn on a light background is backlit; the choice is said)")]
+PhotoSetupOpt = Annotated[str, typer.Option(help=PHOTO_SETUP_HELP)]
 ForceOpt = Annotated[bool, typer.Option("--force", help="write over an output that is an "
                                         "input, or a file this command did not make")]
 
@@ -54,10 +51,8 @@ def render(
     = RenderFormat.png,
     variant: VariantOpt = None,
     setup: Annotated[str | None, typer.Option(
-        help="capture setup: frontlit (colour macro photo under soft boxes, the paper's) or "
-             "backlit (grey silhouette on a light panel, as hairiness testers and "
-             "microscopes); default: the one a fit's params.json or a render's sidecar "
-             "records, else frontlit")] = None,
+        help=f"{SETUP_HELP}; default: the one a fit's params.json or a render's sidecar "
+             f"records, else {DEFAULT_SETUP}")] = None,
     force: ForceOpt = False,
 ) -> None:
     """Render a yarn like a photo of one of the capture setups; writes ``<out>.json`` beside
@@ -69,10 +64,10 @@ def render(
     frame_size(scale)
     if setup is None:
         setup = recorded_setup(params) if params is not None else None
-        if setup is not None and setup != "frontlit":
+        if setup is not None and setup != DEFAULT_SETUP:
             typer.echo(f"note: rendered {setup}, the setup {params} records; --setup to "
                        "choose", err=True)
-    options = setup_options(setup or "frontlit")
+    options = setup_options(setup or DEFAULT_SETUP)
     check_output(out)
     if format is RenderFormat.png and out.suffix.lower() != ".png":
         raise UserError(f"{out}: ipm render writes PNG images; give a .png name")
@@ -220,12 +215,13 @@ def generate(
                                               "and rotation and sensor noise per sample "
                                               "(seeded, recorded in the manifest)")] = True,
     vary_look: Annotated[bool, typer.Option("--vary-look", help="also vary the lamps' and "
-                                            "the backdrop's strength, the frontlit lamps' "
+                                            "the backdrop's strength, the soft boxes' "
                                             "places, defocus, vignetting, tone curve and "
                                             "JPEG compression per sample, so that nets do "
                                             "not learn one look")] = False,
     vary_material: Annotated[bool, typer.Option("--vary-material", help="also vary how much "
-                                                "light a fiber stops (backlit) and the room's "
+                                                "light a fiber stops (lit from behind) and the "
+                                                "room's "
                                                 "fill light per sample, so that nets do not "
                                                 "learn one fiber material")] = False,
     view: Annotated[tuple[int, int] | None, typer.Option(help="render only a WIDTH HEIGHT "
@@ -235,7 +231,7 @@ def generate(
                                                          "--scale 1, 0.01 mm per px)")]
     = None,
     variant: VariantOpt = None,
-    setup: SetupOpt = "frontlit",
+    setup: SetupOpt = DEFAULT_SETUP,
     ray: Annotated[str | None, typer.Option(help="render on Ray instead of a local pool: "
                                             "'auto' joins a running cluster, 'local' starts "
                                             "one, or host:port (pip install -e '.[ray]')")]

@@ -37,11 +37,13 @@ import numpy as np
 
 from ipm.dataset import MANIFEST, Record, manifest_line, read_manifest, write_manifest
 from ipm.errors import UserError
+from ipm.frame import pixel_size_mm
 from ipm.io import write_text
 from ipm.params import YarnParams
 from ipm.prior import GuidedPrior
 from ipm.render.photometric import Photometric, PhotometricRanges
-from ipm.render.scene import DEFAULT_OPTIONS, Frame, SceneOptions, frame_size, pixel_size_mm
+from ipm.render.scene import DEFAULT_OPTIONS, Frame, SceneOptions, frame_size
+from ipm.setups import DEFAULT_SETUP
 
 SETTINGS = "dataset.json"
 IMAGES = "images"
@@ -68,7 +70,7 @@ def spp_range(text: str) -> tuple[int, int | None]:
 
 
 #: Settings added after datasets were made without them, and the value they had implicitly.
-_ADDED_LATER = {"scene": {"setup": "frontlit", "panel": 0.6, "opacity": 0.5},
+_ADDED_LATER = {"scene": {"setup": DEFAULT_SETUP, "panel": 0.6, "opacity": 0.5},
                 "photometric": {"look": False, "material": False}}
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ipm.fibers import FiberSet
-from ipm.frame import YARN_LENGTH_MM
+from ipm.frame import YARN_LENGTH_MM, pixel_size_mm
 from ipm.generator import generate
 from ipm.params import YarnParams
 from ipm.photo import linear_to_srgb, srgb_to_linear, write_png
@@ -31,12 +31,12 @@ from ipm.render.scene import (
     fiber_albedo,
     frame_size,
     look_parameters,
-    pixel_size_mm,
     scaled_options,
     scene_dict,
     yarn_to_world,
 )
 from ipm.render.variant import mitsuba
+from ipm.setups import setup_of
 
 #: Bytes per fiber vertex a render takes beyond the fibers: :func:`world_curves`' float64
 #: work arrays and float32 buffers, their copies in Dr.Jit, and the curves' BVH.
@@ -184,15 +184,15 @@ class Renderer:
         """Linear RGB image (H, W, 3) float32 of the yarn ``generate(params, seed, length)``,
         with the capture variation ``photometric`` applied (geometry and image), in the yarn
         frame at ``scale`` or in ``frame`` (a photo's smaller field of view at its own
-        pitch); a backlit photo is grey (a monochrome sensor: the channels' mean in all
-        three)."""
+        pitch); in a grey setup (:attr:`ipm.setups.CaptureSetup.grey`, a monochrome sensor)
+        the channels' mean in all three."""
         to_world = yarn_to_world(photometric.shift_mm, photometric.rotation_deg)
         image = self.render_fibers(generate(params, seed, length), params.color, scale, spp,
                                    render_seed, to_world, frame, look=photometric)
         if photometric != NOMINAL:
             pitch = frame.pixel_size_mm if frame is not None else pixel_size_mm(scale)
             image = apply_to_image(image, photometric, pitch)
-        if self.options.setup == "backlit":
+        if setup_of(self.options.setup).grey:
             image = np.repeat(image.mean(axis=-1, keepdims=True), 3, axis=-1)
         return image
 

@@ -3,12 +3,13 @@
 Dataset generation, the nets' training crops and every render of the refine loop call
 :func:`scene_dict` with a resolution ``scale``, a sample count and one :class:`SceneOptions`,
 so they all see the same camera, lights, backdrop and fiber material.  Two capture setups
-share the camera and the yarn (:data:`SETUPS`):
+share the camera and the yarn; :mod:`ipm.setups` says which one a name is:
 
-* ``frontlit``: the paper's set-up, a colour macro photo under two soft boxes in front of
+* lamps in front: the paper's set-up, a colour macro photo under two soft boxes in front of
   the yarn over a dark card (the rest of this docstring);
-* ``backlit``: transmitted light, as in hairiness testers and microscope rigs (the photos
-  in ``../shared/real-yarns``): a bright diffuse panel behind the yarn, which stands out as
+* a light behind (``light_behind``): transmitted light, as in hairiness testers and
+  microscope rigs (the photos in ``../shared/real-yarns``): a bright diffuse panel behind
+  the yarn, which stands out as
   a dark grey, partly translucent silhouette.  Each fiber stops a share ``opacity`` of the
   light that meets it (Mitsuba's ``mask`` over a grey diffuse BSDF, so overlapping fibers
   darken the core as cotton's translucent fibers do) and reflects a little of the panel's
@@ -63,8 +64,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ipm.errors import UserError
-from ipm.frame import FRAME_HEIGHT_PX, FRAME_WIDTH_PX, PIXEL_SIZE_MM
+from ipm.frame import FRAME_HEIGHT_PX, FRAME_WIDTH_PX, pixel_size_mm
 from ipm.render.integrator import PLUGIN, register
+from ipm.setups import DEFAULT_SETUP, setup_of
 
 if TYPE_CHECKING:
     from ipm.render.photometric import Photometric
@@ -93,27 +95,25 @@ LIGHT_SAMPLING = ("weighted", "uniform")
 INTEGRATORS = (PLUGIN, "path")
 
 
-CAPTURE_SETUPS = ("frontlit", "backlit")
-
 
 @dataclass(frozen=True)
 class SceneOptions:
     """What stays fixed across a dataset: the capture setup, fiber material, lights, depth.
 
-    setup: one of :data:`CAPTURE_SETUPS` (module doc).  roughness, sheen: of the fibers'
-    principled BSDF (frontlit).  backdrop: albedo of the grey card (frontlit).  key_light:
-    radiance of the left soft box, fill_share the right one's as a share of it, lamp_turn and
-    lamp_tilt (degrees) how far both are turned about the view direction and raised from
-    where :data:`SOFT_BOXES` stands them (frontlit; :func:`soft_boxes`).  panel: radiance
-    of the light panel behind the yarn (backlit).  opacity: share of the light a fiber stops
-    (backlit).  room_light: uniform fill radiance.  max_depth: path length (frontlit: 3 =
-    one bounce between fibers; backlit: enough to pass through a ply).  sampler: Mitsuba's
-    pixel sampler (see the module doc).  light_sampling: the lamps' ``sampling_weight``
-    (:data:`LIGHT_WEIGHTS` or all equal).  integrator: see :data:`INTEGRATORS` (backlit:
-    ``path``, whose camera rays see the panel).
+    setup: a name of :data:`ipm.setups.SETUPS` (module doc).  roughness, sheen: of the
+    fibers' principled BSDF (lamps in front).  backdrop: albedo of the grey card (lamps in
+    front).  key_light: radiance of the left soft box, fill_share the right one's as a share
+    of it, lamp_turn and lamp_tilt (degrees) how far both are turned about the view
+    direction and raised from where :data:`SOFT_BOXES` stands them (:func:`soft_boxes`).
+    panel: radiance of the light panel behind the yarn (light behind).  opacity: share of
+    the light a fiber stops (light behind).  room_light: uniform fill radiance.  max_depth:
+    path length (3 = one bounce between fibers; a light behind: enough to pass through a
+    ply).  sampler: Mitsuba's pixel sampler (see the module doc).  light_sampling: the
+    lamps' ``sampling_weight`` (:data:`LIGHT_WEIGHTS` or all equal).  integrator: see
+    :data:`INTEGRATORS` (a light behind: ``path``, whose camera rays see the panel).
     """
 
-    setup: str = "frontlit"
+    setup: str = DEFAULT_SETUP
     roughness: float = 0.5
     sheen: float = 0.5
     backdrop: float = 0.03
@@ -130,12 +130,9 @@ class SceneOptions:
     integrator: str = PLUGIN
 
     def __post_init__(self) -> None:
-        if self.setup not in CAPTURE_SETUPS:
-            raise UserError(f"unknown capture setup {self.setup!r}; one of "
-                            f"{', '.join(CAPTURE_SETUPS)}")
-        if self.setup == "backlit" and self.integrator != "path":
-            raise UserError("the backlit setup renders with integrator 'path' (its camera rays "
-                            f"must see the panel), not {self.integrator!r}")
+        if setup_of(self.setup).light_behind and self.integrator != "path":
+            raise UserError(f"the {self.setup} setup renders with integrator 'path' (its "
+                            f"camera rays must see the panel), not {self.integrator!r}")
         if not 0 < self.opacity <= 1:
             raise UserError(f"fiber opacity must be in (0, 1], got {self.opacity}")
         if self.sampler not in SAMPLERS:
@@ -159,11 +156,11 @@ class SceneOptions:
 
 
 DEFAULT_OPTIONS = SceneOptions()
-#: Each capture setup's scene; ``--setup NAME`` picks one in every command.
-SETUPS: dict[str, SceneOptions] = {
-    "frontlit": DEFAULT_OPTIONS,
-    "backlit": SceneOptions(setup="backlit", integrator="path", max_depth=16, room_light=0.05),
-}
+
+
+def behind(opts: SceneOptions) -> bool:
+    """Whether ``opts``' setup lights the yarn from behind (:mod:`ipm.setups`)."""
+    return setup_of(opts.setup).light_behind
 
 
 def scaled_options(opts: SceneOptions, look: Photometric) -> SceneOptions:
@@ -182,7 +179,7 @@ def scaled_options(opts: SceneOptions, look: Photometric) -> SceneOptions:
 
 
 def soft_boxes(opts: SceneOptions) -> list[tuple[str, tuple[float, float, float], float, float]]:
-    """The frontlit soft boxes as ``opts`` stands them: (name, centre (mm), side (mm),
+    """The soft boxes in front as ``opts`` stands them: (name, centre (mm), side (mm),
     radiance).  Each centre keeps its distance from the yarn; its azimuth about the view
     direction turns by ``lamp_turn`` and its elevation above the image plane by
     ``lamp_tilt`` (kept within 5-85 degrees); unturned and untilted, the centres are
@@ -202,11 +199,11 @@ def soft_boxes(opts: SceneOptions) -> list[tuple[str, tuple[float, float, float]
 
 
 def look_parameters(opts: SceneOptions) -> dict[str, Any]:
-    """The ``mi.traverse`` keys and values of ``opts``' lamps (strength and, frontlit, place),
-    card, room light and (backlit) fiber opacity, so that a loaded scene takes another
+    """The ``mi.traverse`` keys and values of ``opts``' lamps (strength and, in front, place),
+    card, room light and (light behind) fiber opacity, so that a loaded scene takes another
     :func:`scaled_options` without loading anew."""
     room = {"room.radiance.value": opts.room_light}
-    if opts.setup == "backlit":
+    if behind(opts):
         return {"panel.emitter.radiance.value": opts.panel,
                 "yarn.bsdf.opacity.value": opts.opacity, **room}
     lamps = {}
@@ -217,10 +214,9 @@ def look_parameters(opts: SceneOptions) -> dict[str, Any]:
 
 
 def setup_options(name: str) -> SceneOptions:
-    """The scene of capture setup ``name`` (one line naming the choices if unknown)."""
-    if name not in SETUPS:
-        raise UserError(f"unknown capture setup {name!r}; one of {', '.join(SETUPS)}")
-    return SETUPS[name]
+    """The scene of capture setup ``name`` (:data:`ipm.setups.SETUPS`; one line naming the
+    choices if unknown); ``--setup NAME`` picks one in every command."""
+    return SceneOptions(setup=name, **setup_of(name).scene)
 
 
 @dataclass(frozen=True)
@@ -241,11 +237,6 @@ def frame_size(scale: float) -> tuple[int, int]:
     return round(FRAME_WIDTH_PX * scale), round(FRAME_HEIGHT_PX * scale)
 
 
-def pixel_size_mm(scale: float) -> float:
-    """Size of one pixel at the yarn, in mm, at ``scale``."""
-    return PIXEL_SIZE_MM / scale
-
-
 def yarn_to_world(shift_mm: tuple[float, float] = (0.0, 0.0), rotation_deg: float = 0.0
                   ) -> np.ndarray:
     """(4, 4) transform of generator coordinates into the world: the axis permutation, a
@@ -260,9 +251,9 @@ def yarn_to_world(shift_mm: tuple[float, float] = (0.0, 0.0), rotation_deg: floa
 
 def fiber_albedo(color: tuple[float, float, float], opts: SceneOptions
                  ) -> tuple[float, float, float]:
-    """The fibers' albedo in ``opts``' setup: the yarn's colour, or in the grey backlit setup
-    its luminance (Rec. 709 weights)."""
-    if opts.setup == "backlit":
+    """The fibers' albedo in ``opts``' setup: the yarn's colour, or in a grey setup its
+    luminance (Rec. 709 weights)."""
+    if setup_of(opts.setup).grey:
         grey = 0.2126 * color[0] + 0.7152 * color[1] + 0.0722 * color[2]
         return (grey, grey, grey)
     return tuple(color)
@@ -270,16 +261,16 @@ def fiber_albedo(color: tuple[float, float, float], opts: SceneOptions
 
 def albedo_parameter(opts: SceneOptions) -> str:
     """The ``mi.traverse`` key of the fibers' albedo, swapped per yarn."""
-    return ("yarn.bsdf.nested_bsdf.reflectance.value" if opts.setup == "backlit"
+    return ("yarn.bsdf.nested_bsdf.reflectance.value" if behind(opts)
             else "yarn.bsdf.base_color.value")
 
 
 def fiber_bsdf(color: tuple[float, float, float], opts: SceneOptions) -> dict[str, Any]:
     """The fibers' BSDF (:func:`albedo_parameter` is swapped per yarn through
-    ``mi.traverse``): frontlit a principled BSDF, backlit a grey diffuse one that lets
-    ``1 - opacity`` of the light through."""
+    ``mi.traverse``): lamps in front a principled BSDF, a light behind a diffuse one that
+    lets ``1 - opacity`` of the light through."""
     albedo = {"type": "rgb", "value": list(fiber_albedo(color, opts))}
-    if opts.setup == "backlit":
+    if behind(opts):
         return {"type": "mask", "opacity": opts.opacity,
                 "bsdf": {"type": "diffuse", "reflectance": albedo}}
     return {"type": "principled", "base_color": albedo,
@@ -310,12 +301,12 @@ def _soft_box(name: str, position: tuple[float, float, float], size_mm: float,
 
 def integrator_dict(mi: ModuleType, opts: SceneOptions) -> dict[str, Any]:
     """``opts.integrator`` for the variant set in ``mi``; scalar variants run ``path``.
-    Emitters are hidden from camera rays but for the backlit panel."""
+    Emitters are hidden from camera rays but for a panel behind the yarn."""
     if opts.integrator == PLUGIN and not mi.variant().startswith("scalar"):
         register(mi)
         return {"type": PLUGIN, "max_depth": opts.max_depth}
     return {"type": "path", "max_depth": opts.max_depth,
-            "hide_emitters": opts.setup != "backlit"}
+            "hide_emitters": not behind(opts)}
 
 
 def _lights(opts: SceneOptions) -> dict[str, Any]:
@@ -325,7 +316,7 @@ def _lights(opts: SceneOptions) -> dict[str, Any]:
     T = mi.ScalarTransform4f
     behind = T().translate([0, 0, -BACKDROP_DEPTH_MM]) @ T().scale(200)
     room = {"room": _emitter("constant", "room", opts.room_light, opts)}
-    if opts.setup == "backlit":  # a rectangle faces +z, the camera
+    if behind(opts):  # a rectangle faces +z, the camera
         return {"panel": {"type": "rectangle", "to_world": behind,
                           "emitter": {"type": "area",
                                       "radiance": {"type": "rgb", "value": [opts.panel] * 3}}},

@@ -12,6 +12,7 @@ from ipm.prior import FLYAWAY_RANGES
 from ipm.refine.search import (
     ALGORITHMS,
     SearchOptions,
+    Stage,
     likeliest_counts,
     ply_count_scores,
     same_period,
@@ -23,6 +24,14 @@ from ipm.refine.search import (
 
 TRUTH = preset("golden")
 NAMES = ("alpha", "alpha_ply", "R_ply")
+#: The ply count's choice, as a stage.
+COUNT = Stage("ply count")
+
+
+def staged(*stages, **kw):
+    """A stage searching each tuple of ``stages`` (``SearchOptions(**kw)``); COUNT as is."""
+    return [s if isinstance(s, Stage) else Stage("s", SearchOptions(params=s, **kw))
+            for s in stages]
 
 
 def quadratic(p, seed):
@@ -151,7 +160,7 @@ def test_ply_counts_each_searched_and_the_lowest_loss_kept():
             + (0.0 if p.n == TRUTH.n else 0.05)
 
     start = TRUTH.replace(n=TRUTH.n + 1, alpha_ply=TRUTH.alpha_ply + 1.0)
-    opts = SearchOptions(params=("alpha_ply",), budget=30)
+    opts = staged(("alpha_ply",), budget=30)
     seen = []
     res = search_ply_counts(period, start, [start.n, TRUTH.n, 6], opts,
                             lambda i, loss, best: seen.append(i), None)
@@ -178,8 +187,8 @@ def test_another_ply_count_is_searched_from_the_nets_stripe_period():
     start = TRUTH.replace(n=n, alpha_ply=TRUTH.alpha_ply * n / TRUTH.n)
     assert start.alpha_ply - TRUTH.alpha_ply > 3 * 0.5
     sigma = {"alpha_ply": 0.5}
-    res = search_ply_counts(period, start, [n, TRUTH.n], SearchOptions(params=("alpha_ply",),
-                                                                       budget=30), None, sigma)
+    res = search_ply_counts(period, start, [n, TRUTH.n], staged(("alpha_ply",), budget=30),
+                            None, sigma)
     assert res.best.n == TRUTH.n and abs(res.best.alpha_ply - TRUTH.alpha_ply) < 0.05
 
 
@@ -214,13 +223,14 @@ def test_the_likeliest_counts_stop_at_the_mass_or_the_number_asked():
 
 
 def test_a_staged_search_chooses_the_count_before_its_pitch_stage_and_the_whole_loss_judges():
-    """The count is chosen once, from the thickness stage's best (R_ply at the truth), and
-    kept when the loss agrees; a count the loss scores 10 higher is not an improvement."""
+    """The count is chosen once, at its stage, from the thickness stage's best (R_ply at the
+    truth), and kept when the loss agrees; a count the loss scores 10 higher is not an
+    improvement."""
     def loss(p, seed):
         return quadratic(p, seed) + (10.0 if p.n == 6 else 0.0) \
             + (0.0 if p.n in (TRUTH.n, 6) else 1.0)
 
-    opts = SearchOptions(params=("R_ply",), later=(("alpha_ply",),), budget=20)
+    opts = staged(("R_ply",), COUNT, ("alpha_ply",), budget=20)
     start = TRUTH.replace(n=TRUTH.n + 1, R_ply=TRUTH.R_ply * 1.2)
     seen = []
 
@@ -234,9 +244,9 @@ def test_a_staged_search_chooses_the_count_before_its_pitch_stage_and_the_whole_
     wrong = search_stages(loss, TRUTH.replace(R_ply=TRUTH.R_ply * 1.2), opts, None, None,
                           lambda p: p.replace(n=6))
     assert wrong.best.n == 6 and not wrong.improved
-    first = SearchOptions(params=("alpha_ply",), later=(("R_ply",),), budget=20)
-    never = search_stages(loss, start, first, None, None, lambda p: p.replace(n=6))
-    assert never.best.n == start.n  # a later stage without alpha_ply: no choice
+    never = search_stages(loss, start, staged(("alpha_ply",), ("R_ply",), budget=20), None,
+                          None, lambda p: p.replace(n=6))
+    assert never.best.n == start.n  # no ply-count stage: no choice
 
 
 def test_staged_search_starts_each_stage_from_the_one_before():
@@ -244,17 +254,16 @@ def test_staged_search_starts_each_stage_from_the_one_before():
     count on across the stages, and a stage with an empty parameter list is refused."""
     start = TRUTH.replace(alpha=TRUTH.alpha - 1.5, alpha_ply=TRUTH.alpha_ply + 2.0)
     seen = []
-    opts = SearchOptions(params=("alpha_ply",), later=(("alpha",),), budget=30)
+    opts = staged(("alpha_ply",), ("alpha",), budget=30)
     res = search_stages(quadratic, start, opts, lambda i, loss, best: seen.append(i))
-    assert opts.stages == (("alpha_ply",), ("alpha",))
     assert res.improved and res.start is start and res.best_loss < res.start_loss
     for k in ("alpha", "alpha_ply"):
         assert abs(getattr(res.best, k) - getattr(TRUTH, k)) < 0.01 * PAPER_INTERVALS[k].width
     assert seen == list(range(1, res.evaluations + 1)) and res.evaluations > 30
-    one = search_stages(quadratic, start, SearchOptions(params=("alpha_ply",), budget=30))
+    one = search_stages(quadratic, start, staged(("alpha_ply",), budget=30))
     assert one.best.alpha == start.alpha  # a single stage leaves alpha alone
     with pytest.raises(UserError):
-        SearchOptions(params=("alpha_ply",), later=((),))
+        SearchOptions(params=())
 
 
 def test_flyaways_are_searched_over_their_whole_range_on_a_log_scale():
@@ -288,18 +297,16 @@ def test_a_stage_is_searched_with_the_objectives_own_objective_for_it():
         def __call__(self, p, seed):
             return quadratic(p, seed) + ((p.g - truth.g) / 100) ** 2 + 1.0
 
-        def for_stage(self, names, earlier):
-            return (lambda p, seed: ((p.g - truth.g) / 100) ** 2) if "g" in names else self
+        def for_stage(self, stage):
+            return (lambda p, seed: ((p.g - truth.g) / 100) ** 2) if "g" in stage.params else self
 
     start = TRUTH.replace(g=150, alpha_ply=TRUTH.alpha_ply + 2.0)
     objective = Staged()
-    res = search_stages(objective, start, SearchOptions(params=("g",),
-                                                        later=(("alpha_ply",),), budget=30))
+    res = search_stages(objective, start, staged(("g",), ("alpha_ply",), budget=30))
     assert abs(res.best.g - 60) <= 3 and abs(res.best.alpha_ply - TRUTH.alpha_ply) < 0.3
     assert res.start_loss == pytest.approx(np.mean([objective(start, s) for s in (0, 1, 2)]))
     assert res.best_loss > 1.0  # the objective's own, not the stage's
-    flyaways_last = search_stages(objective, start, SearchOptions(
-        params=("alpha_ply",), later=(("g",),), budget=30))
+    flyaways_last = search_stages(objective, start, staged(("alpha_ply",), ("g",), budget=30))
     assert flyaways_last.best_loss == pytest.approx(
         np.mean([objective(flyaways_last.best, s) for s in (0, 1, 2)]))
 
@@ -314,10 +321,10 @@ def test_a_stage_whose_best_the_whole_objective_scores_worse_is_not_an_improveme
         def __call__(self, p, seed):
             return quadratic(p, seed)
 
-        def for_stage(self, names, earlier):
+        def for_stage(self, stage):
             return lambda p, seed: (p.alpha_ply - start.alpha_ply - 2.0) ** 2
 
-    res = search_stages(Disagreeing(), start, SearchOptions(params=("alpha_ply",), budget=30))
+    res = search_stages(Disagreeing(), start, staged(("alpha_ply",), budget=30))
     assert abs(res.best.alpha_ply - start.alpha_ply - 2.0) < 0.3
     assert res.best_loss > res.start_loss and not res.improved
 

@@ -1,0 +1,97 @@
+"""What ``ipm fit`` shows the user: the photo and the renders side by side in the photo's
+capture (:mod:`ipm.refine.capture`), and the fitted yarn in a few lines."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ipm.frame import pixel_size_mm
+from ipm.params import PAPER_INTERVALS, YarnParams
+from ipm.photo import Photo
+from ipm.refine.capture import in_capture, matched_blur, matched_level
+from ipm.refine.measure import search_view
+from ipm.refine.objective import centre_crop
+from ipm.refine.search import LEVEL
+from ipm.render.photometric import Photometric
+from ipm.setups import setup_of
+
+if TYPE_CHECKING:
+    from ipm.refine.fit import FitResult
+    from ipm.refine.plan import FitConfig
+
+#: A card within this many stops of the photo's is shown as the scene renders it (a tenth
+#: of a stop is not seen).
+CARD_TOLERANCE_STOPS = 0.1
+
+
+def display_renders(renderer, photo: Photo, result: FitResult, config: FitConfig
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Photometric]:
+    """(photo, neural render, refined render) as sRGB at ``display_scale`` (a photo of a
+    smaller field of view at a finer pitch, :func:`search_view`), cut to their common
+    extent, the renders in the photo's capture, and that capture (:mod:`ipm.refine.capture`:
+    lit in front, the card's albedo matched on a render at the search's pitch, rendered
+    with; lit from behind, the exposure; and the defocus matched on the refined render,
+    applied to both)."""
+    scale, frame = search_view(photo, config.display_scale)
+    shown = photo.at_pitch(scale)
+    pitch = pixel_size_mm(scale)
+
+    def rendered(p: YarnParams, look: Photometric) -> np.ndarray:
+        img = renderer.render(p, config.fiber_seed, scale, config.display_spp,
+                              photometric=look, frame=frame)
+        return centre_crop(img, min(shown.shape[0], img.shape[0]),
+                           min(shown.shape[1], img.shape[1]))
+
+    tilted = scene = Photometric(rotation_deg=result.tilt_deg)
+    setup = renderer.options.setup
+    behind = setup_of(setup).light_behind
+    if not behind:  # the card's albedo, from a render at the search's pitch
+        probe_scale, probe_frame = search_view(photo, config.scale)
+        probe = renderer.render(result.refined, config.fiber_seed, probe_scale,
+                                config.spp, photometric=tilted, frame=probe_frame)
+        small = photo.at_pitch(probe_scale)
+        h, w = min(small.shape[0], probe.shape[0]), min(small.shape[1], probe.shape[1])
+        card = matched_level(centre_crop(small, h, w), centre_crop(probe, h, w), tilted, setup)
+        if abs(np.log2(card.backdrop_gain)) > CARD_TOLERANCE_STOPS:
+            scene = card
+    refined, neural = (rendered(p, scene) for p in (result.refined, result.neural))
+    shown = centre_crop(shown, *refined.shape[:2])
+    level = matched_level(shown, refined, scene, setup) if behind else scene
+    capture = matched_blur(shown, refined, pitch, level)
+    return (shown, *(in_capture(img, capture, pitch) for img in (neural, refined)), capture)
+
+
+def summary_lines(result: FitResult) -> list[str]:
+    """The fitted yarn in a few lines for the terminal: the ply count (and the nets') and the
+    six raw-yarn parameters with their :data:`LEVEL` intervals (``params.json`` holds all
+    twenty and where each interval comes from)."""
+    r, n = result.refined, result.neural
+    lines = [f"fitted yarn ({LEVEL:.0%} intervals; params.json holds every parameter):",
+             f"  n          {r.n:>7d}     plies" + ("" if r.n == n.n else f" (nets: {n.n})")]
+    intervals = result.intervals()
+    for k in ("R_ply", "alpha_ply", "r_x", "r_y", "alpha", "m"):
+        iv = f"[{intervals[k][0]:.3g}, {intervals[k][1]:.3g}]" if k in intervals else ""
+        lines.append(f"  {k:<10s} {getattr(r, k):>7.3g} {PAPER_INTERVALS[k].unit:<3s} "
+                     f"{iv:<18s} {PAPER_INTERVALS[k].meaning}")
+    return lines
+
+
+def compare_image(panels: list[np.ndarray], labels: list[str]) -> np.ndarray:
+    """sRGB panels of one width stacked top to bottom (the yarn is wide), each with its label
+    underneath; (H, W, 3) uint8."""
+    from PIL import Image, ImageDraw
+
+    w = panels[0].shape[1]
+    bar = 18
+    out = Image.new("RGB", (w, sum(p.shape[0] + bar for p in panels)), (255, 255, 255))
+    draw = ImageDraw.Draw(out)
+    top = 0
+    for img, label in zip(panels, labels, strict=True):
+        out.paste(Image.fromarray((np.clip(img, 0, 1) * 255).round().astype(np.uint8)),
+                  (0, top))
+        top += img.shape[0]
+        draw.text((4, top + 3), label, fill=(0, 0, 0))
+        top += bar
+    return np.asarray(out)

@@ -52,7 +52,7 @@ def search_interval(name: str, value: float, profile: tuple[float, float],
     interval around ``neural_value`` (:func:`nets_interval`).  Why the hull: the profile
     measures only the loss's seed noise, not how far the scene's renders are from the
     photo, and alone it held the truth far less often than its level (``docs/compare``,
-    ``docs/compare-cycles-frontlit``); the hull holds it about as often as the nets'
+    the Cycles comparisons in ``docs``); the hull holds it about as often as the nets'
     intervals do (``benchmarks/results/interval_coverage.md``)."""
     lo, hi = min(value, profile[0]), max(value, profile[1])
     if sigma is None:

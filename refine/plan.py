@@ -238,15 +238,18 @@ def stage_name(params: tuple[str, ...]) -> str:
     return "+".join(params)
 
 
-def _scoring(params: tuple[str, ...], setup: str) -> dict:
-    """The ``scored_by`` or ``without`` of a stage of ``params`` (module doc)."""
+def stage_for(params: tuple[str, ...], setup: str, search: SearchOptions | None = None
+              ) -> Stage:
+    """The stage searching ``params`` in a fit of a photo of ``setup``: its name and the
+    loss it is scored by (module doc); ``search``: how (:meth:`FitConfig.search_options`)."""
+    scoring: dict = {}
     if all(k in FLYAWAY_RANGES for k in params):
-        return {"scored_by": ("flyaways",)}
-    if params == ("alpha_ply",):
-        return {"scored_by": setup_of(setup).pitch_groups}
-    if set(params) & set(THICKNESS) and "alpha_ply" not in params:
-        return {"without": ("contour",)}
-    return {}
+        scoring = {"scored_by": ("flyaways",)}
+    elif params == ("alpha_ply",):
+        scoring = {"scored_by": setup_of(setup).pitch_groups}
+    elif set(params) & set(THICKNESS) and "alpha_ply" not in params:
+        scoring = {"without": ("contour",)}
+    return Stage(stage_name(params), search, **scoring)
 
 
 def plan(config: FitConfig, setup: str, count_probability: float | None = None,
@@ -275,7 +278,7 @@ def plan(config: FitConfig, setup: str, count_probability: float | None = None,
             choose = False
         cover = outside and bool({"r_x", "r_y"} & set(params)) and "m" not in params
         search = config.search_options(params, budget, polish if len(params) > 1 else 0, cover)
-        out.append(Stage(stage_name(params), search, **_scoring(params, setup)))
+        out.append(stage_for(params, setup, search))
     seeds = config.seeds_per_eval
     return Plan(tuple(out), min(seeds, OUTSIDE_SEEDS_PER_EVAL) if outside else seeds,
                 config.prior and not outside, gate)

@@ -194,10 +194,10 @@ def search_box(start: YarnParams, names: tuple[str, ...], width: float,
     (:data:`ipm.prior.FLYAWAY_RANGES`) is searched over its whole sampler range, down to its
     interval's low end (a cleaner yarn than the paper's), unless ``sigma`` narrows it: the
     nets do not read flyaways off renders they were not trained on
-    (benchmarks/results/nets_accuracy_cycles_frontlit.md: g, l_hair, l_loop worse than
+    (the Cycles pages of benchmarks/results/nets_accuracy: g, l_hair, l_loop worse than
     the mean), so a box around their guess need not hold the photo's.  (The search does
     not recover the true flyaways of such renders either: it matches their look,
-    docs/compare-cycles-backlit-flyaways.)"""
+    the Cycles comparisons in docs.)"""
     lo, hi = [], []
     for k in names:
         iv = PAPER_INTERVALS[k]
@@ -233,8 +233,8 @@ def seed_noise(losses: Sequence[float]) -> float:
 def same_cover(p: YarnParams, start: YarnParams) -> YarnParams:
     """``p`` with the fibers per ply ``m`` scaled with the ply's mean radius
     ``sqrt(r_x r_y)`` from ``start``'s (within ``m``'s interval), so that the share of a
-    ply's side view its fibers cover, about ``m t / r``, stays ``start``'s: a backlit core
-    then stays as dark as in the render of ``start``.  Why: a search that narrows the plies
+    ply's side view its fibers cover, about ``m t / r``, stays ``start``'s: a core lit from
+    behind then stays as dark as in the render of ``start``.  Why: a search that narrows the plies
     of a yarn the nets read too thick would otherwise pack their fiber count into far
     narrower plies and render an opaque black core whose ply stripes no longer show (most
     real-photo fits that missed the stripe period, docs/real-photos-two-seeds);

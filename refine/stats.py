@@ -94,7 +94,7 @@ def _centred_deviation(gray: Tensor) -> Tensor:
     units of the core's contrast (the largest |per-row median deviation|).
 
     Why in those units: the core's contrast is the capture's (lamps, exposure, background
-    level, the fibers' translucency), not the yarn's shape.  A real backlit photo's grey,
+    level, the fibers' translucency), not the yarn's shape.  A real microscope photo's grey,
     low-contrast core matched a thinner render's core best in absolute units, so fitted
     cores came out thinner than the photos' (README, "Real photos"; docs/real-photos-staged).
     The autocorrelation, the stripes and the spectrum were already invariant to it."""
@@ -309,7 +309,7 @@ def _contour(edges: Tensor) -> Tensor:
     The plies' outlines make the core's edges move out and in every ``alpha_ply / n``
     (:func:`_silhouette`), so the autocorrelation peaks there, wherever each fiber lands.
     Why beside ``period`` and ``stripes``, which read the stripes inside the core band: a
-    backlit core of many fibers is nearly opaque in a render and grey in a photo, so the
+    core of many fibers lit from behind is nearly opaque in a render and grey in a photo, so the
     stripes inside it differ between the two more than the outline does; and a microscope's
     photo shows three or four ply periods, which the ``period`` group's lags (a third of
     the width) do not reach."""

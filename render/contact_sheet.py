@@ -35,7 +35,7 @@ def contact_sheet(out: str | os.PathLike, scale: float = 0.25, spp: int = 16, se
         x = GAP_PX + (i % COLUMNS) * (w + GAP_PX)
         y = GAP_PX + (i // COLUMNS) * (h + GAP_PX)
         sheet.paste(Image.fromarray(tile), (x, y))
-        dark_text = tile[:12].mean() > 128  # a backlit tile: its top is the bright panel
+        dark_text = tile[:12].mean() > 128  # lit from behind: its top is the bright panel
         draw.text((x + 4, y + 3), name, fill=(0, 0, 0) if dark_text else (255, 255, 255))
     with atomic_path(out) as tmp:
         sheet.save(tmp, format="PNG")

@@ -34,9 +34,9 @@ class Photometric:
     yarn about the view direction.  noise: (a, b) of Poisson-Gaussian sensor noise, variance
     a * x + b on the linear image x.  noise_seed: seed of that noise.  light_gain,
     backdrop_gain: the lamps' and the card's strength (:func:`ipm.render.scene.scaled_options`).
-    fiber_opacity: the share of the light a fiber stops in the backlit setup (0: the scene's
+    fiber_opacity: the share of the light a fiber stops, lit from behind (0: the scene's
     own, :attr:`ipm.render.scene.SceneOptions.opacity`).  room_gain: the room's fill light.
-    lamp_turn_deg, lamp_tilt_deg, fill_share: where the frontlit soft boxes stand and how
+    lamp_turn_deg, lamp_tilt_deg, fill_share: where the soft boxes in front stand and how
     strong the second is (:func:`ipm.render.scene.soft_boxes`; fill_share 0: the scene's own).
     """
 
@@ -80,7 +80,7 @@ class PhotometricRanges:
     shift_mm: +-mm in x and y.  rotation_deg: +-degrees.  noise_a, noise_b: upper bounds of
     the Poisson (gain) and Gaussian (read) noise terms, drawn in [0, bound].  look: whether
     to vary the rest as :data:`LOOK` and :data:`LAMPS` say (lights, backdrop, defocus,
-    vignetting, tone, JPEG; the frontlit lamps' places).  material: whether to vary the
+    vignetting, tone, JPEG; the lamps' places in front).  material: whether to vary the
     fibers' material as :data:`MATERIAL` says.
     """
 
@@ -137,14 +137,14 @@ def _uniform(rng: np.random.Generator, lo: float, hi: float, log: bool = False) 
 
 NO_VARIATION = PhotometricRanges(0.0, 0.0, (0.0, 0.0), 0.0, 0.0, 0.0)
 #: The ranges of the look's variations (uniform but :data:`LOG_LOOK`'s; JPEG on half of the
-#: images).  The frontlit card from near-black velvet to a mid-grey card (albedo 0.009-0.3
-#: around the scene's 0.03), since users photograph yarn over either; it was 0.3-3 times the
-#: scene's before the frontlit nets were trained on a varied look.
+#: images).  The card (lamps in front) from near-black velvet to a mid-grey card (albedo
+#: 0.009-0.3 around the scene's 0.03), since users photograph yarn over either; it was 0.3-3
+#: times the scene's before the nets of that setup were trained on a varied look.
 LOOK: dict[str, tuple[float, float]] = {
     "light_gain": (0.6, 1.6), "backdrop_gain": (0.3, 10.0), "blur_mm": (0.0, 0.04),
     "vignetting": (0.0, 0.3), "gamma": (0.8, 1.25), "jpeg_quality": (60, 95)}
 LOG_LOOK = frozenset({"backdrop_gain"})
-#: Where the frontlit soft boxes stand (uniform): both turned about the view direction and
+#: Where the soft boxes in front stand (uniform): both turned about the view direction and
 #: raised or lowered from the scene's 44 degrees above the image plane, and the second
 #: lamp's strength as a share of the first's.  Why: a copy stand's lamps stand anywhere
 #: around the yarn, and where the light comes from decides which side of each ply is lit
@@ -155,9 +155,9 @@ LAMPS: dict[str, tuple[float, float]] = {"lamp_turn_deg": (-90.0, 90.0),
 #: The ranges of the material's variations (log-uniform).  Why: a renderer or a real fiber
 #: that lets light through otherwise than the scene's fibers (opacity 0.5) shows another
 #: grey core and other ply boundaries, and nets trained on the one opacity read Blender
-#: Cycles' translucent hair as fewer plies (benchmarks/results/nets_accuracy_cycles_backlit.md,
-#: before and after, in the model card nets/models-backlit/README.md); a fill light in front
-#: greys the silhouette too.
+#: Cycles' translucent hair as fewer plies (the Cycles pages of benchmarks/results, before
+#: and after, in the model card of the nets lit from behind); a fill light in front greys
+#: the silhouette too.
 MATERIAL: dict[str, tuple[float, float]] = {"fiber_opacity": (0.25, 0.9),
                                            "room_gain": (0.3, 4.0)}
 

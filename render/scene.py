@@ -158,7 +158,7 @@ class SceneOptions:
 DEFAULT_OPTIONS = SceneOptions()
 
 
-def behind(opts: SceneOptions) -> bool:
+def lit_from_behind(opts: SceneOptions) -> bool:
     """Whether ``opts``' setup lights the yarn from behind (:mod:`ipm.setups`)."""
     return setup_of(opts.setup).light_behind
 
@@ -203,7 +203,7 @@ def look_parameters(opts: SceneOptions) -> dict[str, Any]:
     card, room light and (light behind) fiber opacity, so that a loaded scene takes another
     :func:`scaled_options` without loading anew."""
     room = {"room.radiance.value": opts.room_light}
-    if behind(opts):
+    if lit_from_behind(opts):
         return {"panel.emitter.radiance.value": opts.panel,
                 "yarn.bsdf.opacity.value": opts.opacity, **room}
     lamps = {}
@@ -261,7 +261,7 @@ def fiber_albedo(color: tuple[float, float, float], opts: SceneOptions
 
 def albedo_parameter(opts: SceneOptions) -> str:
     """The ``mi.traverse`` key of the fibers' albedo, swapped per yarn."""
-    return ("yarn.bsdf.nested_bsdf.reflectance.value" if behind(opts)
+    return ("yarn.bsdf.nested_bsdf.reflectance.value" if lit_from_behind(opts)
             else "yarn.bsdf.base_color.value")
 
 
@@ -270,7 +270,7 @@ def fiber_bsdf(color: tuple[float, float, float], opts: SceneOptions) -> dict[st
     ``mi.traverse``): lamps in front a principled BSDF, a light behind a diffuse one that
     lets ``1 - opacity`` of the light through."""
     albedo = {"type": "rgb", "value": list(fiber_albedo(color, opts))}
-    if behind(opts):
+    if lit_from_behind(opts):
         return {"type": "mask", "opacity": opts.opacity,
                 "bsdf": {"type": "diffuse", "reflectance": albedo}}
     return {"type": "principled", "base_color": albedo,
@@ -306,7 +306,7 @@ def integrator_dict(mi: ModuleType, opts: SceneOptions) -> dict[str, Any]:
         register(mi)
         return {"type": PLUGIN, "max_depth": opts.max_depth}
     return {"type": "path", "max_depth": opts.max_depth,
-            "hide_emitters": not behind(opts)}
+            "hide_emitters": not lit_from_behind(opts)}
 
 
 def _lights(opts: SceneOptions) -> dict[str, Any]:
@@ -316,7 +316,7 @@ def _lights(opts: SceneOptions) -> dict[str, Any]:
     T = mi.ScalarTransform4f
     behind = T().translate([0, 0, -BACKDROP_DEPTH_MM]) @ T().scale(200)
     room = {"room": _emitter("constant", "room", opts.room_light, opts)}
-    if behind(opts):  # a rectangle faces +z, the camera
+    if lit_from_behind(opts):  # a rectangle faces +z, the camera
         return {"panel": {"type": "rectangle", "to_world": behind,
                           "emitter": {"type": "area",
                                       "radiance": {"type": "rgb", "value": [opts.panel] * 3}}},

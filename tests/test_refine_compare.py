@@ -11,10 +11,9 @@ import pytest
 from ipm.errors import UserError
 from ipm.params import RAW_CONTINUOUS
 from ipm.refine.compare import FITS, PhotoPrep, compare, photos_in
-from ipm.refine.fit import FitOptions
-from ipm.refine.search import SearchOptions
+from ipm.refine.plan import FitConfig
 
-OPTIONS = FitOptions(search=SearchOptions(budget=12))
+OPTIONS = FitConfig(budget=12)
 
 
 @pytest.fixture(scope="module")
@@ -139,12 +138,10 @@ def test_the_report_shows_the_flyaway_parameters_a_search_moved():
     from ipm.params import RAW_CONTINUOUS
     from ipm.presets import preset
     from ipm.refine.compare import reported, summary
-    from ipm.refine.fit import FitOptions
-    from ipm.refine.search import SearchOptions
 
-    staged = FitOptions(search=SearchOptions(params=("R_ply",), later=(("g", "l_hair"),)))
-    assert reported(staged) == (*RAW_CONTINUOUS, "g", "l_hair")
-    assert reported(FitOptions()) == RAW_CONTINUOUS
+    staged = FitConfig(params="R_ply;g,l_hair")
+    assert reported(staged, "frontlit") == (*RAW_CONTINUOUS, "g", "l_hair")
+    assert reported(FitConfig(), "backlit") == RAW_CONTINUOUS
     t = preset("golden")
     rows = [{"neural": t.replace(g=t.g + 40).to_dict(), "refined": t.replace(g=t.g + 10).to_dict(),
              "improved": True, "seconds": 1.0}]

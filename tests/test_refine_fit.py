@@ -70,7 +70,8 @@ def test_fit_refine_writes_everything_and_does_not_get_worse(models, photo, tmp_
     assert result["loss"]["refined"] <= result["loss"]["neural"]
     assert result["settings"]["pixel_size_mm"] == 0.04 and result["evaluations"] <= 12
     assert neural.n == refined.n and neural.m == refined.m  # discrete parameters: the nets'
-    assert result["settings"]["search"]["params"] == ["r_y", "alpha_ply"]
+    assert [s["params"] for s in result["plan"]["stages"]] == [["r_y", "alpha_ply"]]
+    assert result["settings"]["params"] == "r_y,alpha_ply"
     assert neural.R_ply == refined.R_ply and neural.r_x == refined.r_x  # not searched
     # an 80% interval per continuous parameter, holding the refined value
     intervals = result["intervals"]
@@ -80,6 +81,16 @@ def test_fit_refine_writes_everything_and_does_not_get_worse(models, photo, tmp_
         assert lo <= getattr(refined, k) <= hi, k
         assert source == ("search profile and nets' validation error"
                           if k in ("r_y", "alpha_ply") else "nets' validation error"), k
+
+
+def test_a_dry_run_prints_the_stages_and_writes_nothing(models, photo, tmp_path):
+    out = tmp_path / "dry"
+    r = ipm("fit", photo, "--refine", "--models", models, "--pixel-size", 0.04, "--dry-run",
+            "--params", "R_ply,r_x;alpha_ply", "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert "1. thickness  search R_ply,r_x: 30 evaluations" in r.stdout, r.stdout
+    assert "2. ply twist  search alpha_ply" in r.stdout and "period, stripes" in r.stdout
+    assert not out.exists()
 
 
 def test_a_searched_interval_is_the_profile_joined_with_the_nets():
@@ -132,7 +143,7 @@ def test_missing_models_one_line(photo, tmp_path):
 def test_photo_tilt_is_the_rendered_rotation(degrees):
     """The tilt measured on a real render is the yarn's rotation in the scene (the search
     renders at it), counter-clockwise positive."""
-    from ipm.refine.fit import photo_tilt
+    from ipm.refine.measure import photo_tilt
     from ipm.render.photometric import Photometric
     from ipm.render.renderer import Renderer
 
@@ -173,6 +184,7 @@ def test_a_stage_of_flyaways_is_scored_by_the_flyaway_profile_alone(photo):
     a search moves them."""
     from ipm.photo import Photo
     from ipm.refine.objective import DEFAULT_WEIGHTS, RenderObjective, search_weights
+    from ipm.refine.plan import stage_for
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
@@ -180,19 +192,18 @@ def test_a_stage_of_flyaways_is_scored_by_the_flyaway_profile_alone(photo):
     objective = RenderObjective(Renderer(), small, 0.2, 4,
                                 weights=search_weights(["R_ply", "g"]))
     golden = preset("golden")
-    stage = objective.for_stage(("g", "l_hair"))
+    stage = objective.for_stage(stage_for(("g", "l_hair"), "frontlit"))
     assert stage(golden, 1) == pytest.approx(objective.group_distances(golden, 1)["flyaways"])
     hairy = golden.replace(g=min(300, 3 * golden.g), l_hair=3 * golden.l_hair)
     assert stage(hairy, 1) > 3 * stage(golden, 1)
-    assert objective.for_stage(("alpha_ply", "g")) is objective
+    assert objective.for_stage(stage_for(("alpha_ply", "g"), "frontlit")) is objective
     d = objective.group_distances(golden, 1)
-    for earlier in ((), ("R_ply", "r_x")):
-        pitch = objective.for_stage(("alpha_ply",), earlier)
-        assert pitch(golden, 1) == pytest.approx(d["period"] + 2 * d["stripes"])
+    pitch = objective.for_stage(stage_for(("alpha_ply",), "frontlit"))
+    assert pitch(golden, 1) == pytest.approx(d["period"] + 2 * d["stripes"])
     backlit = RenderObjective(Renderer(options=setup_options("backlit")), small, 0.2, 4)
-    assert {k: w for k, w in backlit.stage_weights(("alpha_ply",)).items() if w} == {
-        "period": 1.0, "stripes": 2.0, "contour": DEFAULT_WEIGHTS["contour"]}
-    thickness = objective.for_stage(("R_ply", "r_x", "r_y"))
+    assert {k: w for k, w in backlit.stage_weights(stage_for(("alpha_ply",), "backlit")).items()
+            if w} == {"period": 1.0, "stripes": 2.0, "contour": DEFAULT_WEIGHTS["contour"]}
+    thickness = objective.for_stage(stage_for(("R_ply", "r_x", "r_y"), "frontlit"))
     assert thickness(golden, 1) == pytest.approx(sum(w * d[k] for k, w in
                                                      objective.weights.items()
                                                      if k != "contour"))
@@ -237,7 +248,7 @@ def test_a_small_fine_photo_is_searched_over_its_own_view_at_a_finer_pitch():
     many pixels as the yarn frame has at the search's scale (not 60 x 45 px); a photo as
     large as the frame keeps the frame; the view renders the yarn where the frame does."""
     from ipm.photo import Photo
-    from ipm.refine.fit import search_view
+    from ipm.refine.measure import search_view
     from ipm.render.renderer import Renderer
     from ipm.render.scene import frame_size
 
@@ -268,7 +279,7 @@ def test_a_views_search_renders_only_the_yarn_its_view_needs_across_the_whole_vi
     view from edge to edge: the outer tenths of the columns are as dark as the middle."""
     from ipm.frame import YARN_LENGTH_MM, YARN_MARGIN_MM, view_yarn_length
     from ipm.photo import Photo
-    from ipm.refine.fit import search_view
+    from ipm.refine.measure import search_view
     from ipm.refine.objective import RenderObjective
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
@@ -317,7 +328,7 @@ def test_match_size_scales_the_thickness_to_the_photo_core_keeping_proportions()
     """The start of a sized search: R_ply, r_x and r_y scaled by one factor until the drawn
     core is as wide as the photo's (60 px), from a yarn twice too thick and from one too
     thin; the other parameters are left alone."""
-    from ipm.refine.fit import match_size
+    from ipm.refine.measure import match_size
 
     truth = preset("golden")
     objective = _BandObjective(2 * (truth.R_ply + truth.r_y) / 60)
@@ -355,21 +366,22 @@ def test_a_backlit_fit_chooses_the_ply_count_by_the_silhouette_and_the_nets_prio
     than its seed noise takes the count to 3 at the same period; one lower at 3 by 1.7
     units of its noise does not outweigh the nets' 0.9 against 0.05 (-ln: 0.1 against 3.0);
     frontlit, no group chooses and the nets' count stands."""
-    from ipm.refine.fit import choose_ply_count
+    from ipm.refine.measure import choose_ply_count
 
     start = preset("golden").replace(n=2, alpha_ply=4.0)
     prior = {2: 0.6, 3: 0.2, 4: 0.1, 5: 0.05, 6: 0.05}
     objective = _CountObjective("backlit")
-    chosen, scores = choose_ply_count(objective, start, prior, (0, 1, 2))
+    chosen, scores = choose_ply_count(objective, start, prior, (0, 1, 2), ("silhouette",))
     assert chosen.n == 3 and chosen.alpha_ply == pytest.approx(6.0)
     assert chosen.replace(n=2, alpha_ply=4.0) == start
     assert set(scores) == {2, 3, 4, 5, 6} and min(scores, key=scores.get) == 3
     assert {k for _, w in objective.calls for k, v in w.items() if v} == {"silhouette"}
     shallow = _CountObjective("backlit", depth=0.01)
-    kept, _ = choose_ply_count(shallow, start, {2: 0.9, 3: 0.05, 4: 0.05}, (0, 1, 2))
+    kept, _ = choose_ply_count(shallow, start, {2: 0.9, 3: 0.05, 4: 0.05}, (0, 1, 2),
+                               ("silhouette",))
     assert kept is start
     frontlit = _CountObjective("frontlit")
-    assert choose_ply_count(frontlit, start, prior, (0, 1, 2)) == (start, {})
+    assert choose_ply_count(frontlit, start, prior, (0, 1, 2), ()) == (start, {})
     assert not frontlit.calls
 
 
@@ -398,39 +410,21 @@ def test_the_objective_renders_a_pair_of_params_and_seed_once_whatever_the_weigh
     assert objective.evaluations == 6
 
 
-def test_a_fit_chooses_the_ply_count_when_its_search_moves_the_pitch():
-    from ipm.refine.fit import FitOptions
-    from ipm.refine.search import SearchOptions
-
-    assert FitOptions().count_groups("backlit") == ("silhouette",)
-    assert FitOptions().count_groups("frontlit") == ()
-    assert FitOptions(choose_count=False).count_groups("backlit") == ()
-    staged = SearchOptions(params=("R_ply", "r_x", "r_y"), later=(("alpha_ply",),))
-    assert FitOptions(search=staged).count_groups("backlit") == ("silhouette",)
-    thickness = SearchOptions(params=("R_ply", "r_x", "r_y"))
-    assert FitOptions(search=thickness).count_groups("backlit") == ()
-
-
 def test_a_fit_that_keeps_an_unsure_nets_ply_count_keeps_their_pitch(photo):
     """Frontlit, where a fit keeps the nets' ply count: with that count below even odds
     the fit says so and does not move alpha_ply (nothing else asked: no search at all; with
     a thickness stage asked too, only that stage runs); with the count likely, the pitch is
-    searched.  A backlit fit, which chooses its count, is never held back."""
+    searched (the plan's gates alone: test_refine_plan)."""
     from ipm.photo import Photo
-    from ipm.refine.fit import FitOptions, fit, unsure_count
-    from ipm.refine.search import SearchOptions
+    from ipm.refine.fit import fit
+    from ipm.refine.plan import FitConfig
     from ipm.render.renderer import Renderer
 
     truth = preset("golden")
     neural = truth.replace(alpha_ply=truth.alpha_ply * 1.3)
     shot = Photo.read(photo, 0.04)
-    quick = FitOptions(search=SearchOptions(budget=6, rescore_seeds=(1,), rescore_top=1),
-                       seeds_per_eval=1)
+    quick = FitConfig(budget=6, rescore_seeds=(1,), rescore_top=1, seeds_per_eval=1)
     unsure = {truth.n: 0.3, truth.n + 1: 0.7}
-    assert unsure_count(quick, neural, unsure, "frontlit")
-    assert not unsure_count(quick, neural, {truth.n: 0.6}, "frontlit")
-    assert not unsure_count(quick, neural, unsure, "backlit")
-    assert not unsure_count(quick, neural, {}, "frontlit")
 
     renderer = Renderer()
     held = fit(shot, neural, renderer, quick, count_prior=unsure)
@@ -438,16 +432,15 @@ def test_a_fit_that_keeps_an_unsure_nets_ply_count_keeps_their_pitch(photo):
     assert any("probability of only 0.30" in w for w in held.warnings)
     searched = fit(shot, neural, renderer, quick, count_prior={truth.n: 0.9})
     assert searched.search is not None and searched.search.evaluations >= 6
-    staged = replace(quick, search=replace(quick.search, params=("R_ply",),
-                                           later=(("alpha_ply",),)))
+    staged = replace(quick, params="R_ply;alpha_ply")
     thickness = fit(shot, neural, renderer, staged, count_prior=unsure)
-    assert thickness.options.search.stages == (("R_ply",),)
+    assert [s.params for s in thickness.plan.stages] == [("R_ply",)]
     assert thickness.refined.alpha_ply == neural.alpha_ply
 
 
 def test_the_width_ratio_of_a_render_to_the_photo_core():
     """A drawn band twice and half as wide as the photo's 60 px core."""
-    from ipm.refine.fit import width_ratio
+    from ipm.refine.measure import width_ratio
 
     truth = preset("golden")
     objective = _BandObjective(2 * (truth.R_ply + truth.r_y) / 60)
@@ -467,8 +460,9 @@ def test_a_yarn_far_thinner_than_the_nets_read_is_searched_thickness_first():
     does a frontlit fit, whose core width follows the light."""
     from ipm.benchmarks.photo_measures import measure_image
     from ipm.photo import Photo
-    from ipm.refine.fit import OUTSIDE_PARAMS, FitOptions, fit
-    from ipm.refine.search import SearchOptions, search_stages_of
+    from ipm.refine.fit import fit
+    from ipm.refine.plan import FitConfig
+    from ipm.refine.search import parse_stages
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
@@ -476,14 +470,15 @@ def test_a_yarn_far_thinner_than_the_nets_read_is_searched_thickness_first():
     truth = preset("golden")
     shot = Photo(linear_to_srgb(renderer.render(truth, 5, 0.25, 8)), 0.04, "backlit")
     thick = truth.replace(**{k: 2.5 * getattr(truth, k) for k in ("R_ply", "r_x", "r_y")})
-    options = FitOptions(scale=0.1, spp=2, search=SearchOptions(budget=8), display_spp=2)
+    options = FitConfig(scale=0.1, spp=2, budget=8, display_spp=2)
     sigma = {"R_ply": 0.01, "r_x": 0.01, "r_y": 0.01, "alpha_ply": 0.1}
     result = fit(shot, thick, renderer, options, sigma=sigma)
     assert any("outside the nets' range" in w for w in result.warnings), result.warnings
-    stages = search_stages_of(OUTSIDE_PARAMS)
-    assert result.options.search.stages == (stages["params"], *stages["later"])
-    assert result.sigma is None and result.options.search.polish > 0
-    assert result.options.search.keep_cover
+    outside = parse_stages("R_ply,r_x,r_y;g,l_hair,l_loop,d_mean;alpha_ply")
+    assert tuple(s.params for s in result.plan.stages) == outside
+    assert result.sigma is None and not result.plan.prior and result.plan.seeds_per_eval == 1
+    thickness = result.plan.stages[0].search
+    assert thickness.polish > 0 and thickness.keep_cover
 
     def core(linear):
         return measure_image(linear_to_srgb(linear).mean(axis=2), True)["core_diameter_px"]
@@ -492,19 +487,13 @@ def test_a_yarn_far_thinner_than_the_nets_read_is_searched_thickness_first():
     before, after = (core(renderer.render(p, 5, 0.25, 8)) / photo_core
                      for p in (result.neural, result.refined))
     assert before > 2 and abs(np.log(after)) < 0.75 * abs(np.log(before)), (before, after)
-    quick = replace_budget(options, 4)
+    quick = replace(options, budget=4)
     kept = fit(shot, truth, renderer, quick, sigma=sigma)
-    assert kept.options.search.stages == (("alpha_ply",),) and kept.sigma == sigma
+    assert [s.params for s in kept.plan.stages] == [("alpha_ply",)] and kept.sigma == sigma
     assert not any("outside the nets' range" in w for w in kept.warnings)
     frontlit = Photo(linear_to_srgb(Renderer().render(truth, 5, 0.25, 8)), 0.04)
     lit = fit(frontlit, thick, Renderer(), quick, sigma=sigma)
-    assert lit.options.search.stages == (("alpha_ply",),) and lit.sigma == sigma
-
-
-def replace_budget(options, budget):
-    from dataclasses import replace
-
-    return replace(options, search=replace(options.search, budget=budget))
+    assert [s.params for s in lit.plan.stages] == [("alpha_ply",)] and lit.sigma == sigma
 
 
 @pytest.mark.parametrize("setup", ["frontlit", "backlit"])

@@ -145,7 +145,7 @@ def test_the_report_shows_the_flyaway_parameters_a_search_moved():
     t = preset("golden")
     rows = [{"neural": t.replace(g=t.g + 40).to_dict(), "refined": t.replace(g=t.g + 10).to_dict(),
              "improved": True, "seconds": 1.0}]
-    s = summary(rows, [t], reported(staged))["params"]
+    s = summary(rows, [t], reported(staged, "frontlit"))["params"]
     assert s["g"]["neural"] == 40 and s["g"]["refined"] == 10 and s["g"]["change_pct"] == -75
 
 

@@ -14,6 +14,7 @@ from PIL import Image
 
 from ipm import FiberSet, preset
 from ipm.errors import UserError
+from ipm.frame import pixel_size_mm
 from ipm.render.photometric import (
     NO_VARIATION,
     NOMINAL,
@@ -22,7 +23,7 @@ from ipm.render.photometric import (
     apply_to_image,
 )
 from ipm.render.renderer import Renderer, srgb8_to_linear, to_srgb8, world_curves
-from ipm.render.scene import SceneOptions, frame_size, pixel_size_mm, yarn_to_world
+from ipm.render.scene import SceneOptions, frame_size, yarn_to_world
 from ipm.render.variant import llvm_major, requested_variant
 
 

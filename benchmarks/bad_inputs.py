@@ -203,8 +203,9 @@ def main() -> None:
                                text=True, timeout=600)
             lines = [ln for ln in r.stderr.strip().splitlines() if ln.strip()]
             peak_mb = int(lines.pop()) / 1024 if lines and lines[-1].isdigit() else float("nan")
-            message = next((ln for ln in lines if ln.startswith(("error", "warning", "note"))),
-                           lines[0] if lines else r.stdout.strip().split("\n")[0])
+            said = [next((ln for ln in lines if ln.startswith(kind)), None)
+                    for kind in ("error", "warning", "note")]  # the most serious first
+            message = next((ln for ln in said if ln), lines[0] if lines else "")
             if term:
                 left = (d / "f7").exists()
                 message += f" (output folder {'left behind' if left else 'not left behind'})"

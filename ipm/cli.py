@@ -166,9 +166,6 @@ def edit(
     from ipm.edit import apply_edits
     from ipm.params import YarnParams
 
-    if out is not None:
-        check_output(out)
-        check_not_inputs([out], [params], force)
     _emit(apply_edits(YarnParams.load(params), set_), out, (params,), force)
 
 

@@ -189,8 +189,8 @@ def _predict_one(cfg, file: Path, target: Path | None, pixel_size, calibration,
     if shot.setup not in ensembles:
         try:
             ensembles[shot.setup] = _load(cfg.models, cfg.device, shot.setup)
-        except UserError as e:
-            raise ModelsError(str(e)) from None
+        except UserError as e:  # (nets of another setup: say how the photo was read)
+            raise ModelsError(f"{e}; {chosen}" if chosen else str(e)) from None
     ensemble = ensembles[shot.setup]
     params = ensemble.predict(shot.inverted() if cfg.invert else shot, cfg.crops)
     if chosen:  # once the photo is read: a refused photo needs no note

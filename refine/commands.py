@@ -12,6 +12,7 @@ from typing import Annotated, get_type_hints
 
 import typer
 
+from ipm.errors import UserError
 from ipm.io import check_not_inputs, check_same_settings, prepare_folder
 from ipm.photo import CALIBRATION_HELP, PIXEL_SIZE_HELP
 from ipm.progress import progress_bar
@@ -149,7 +150,10 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, config, variant,
         (out / stale).unlink(missing_ok=True)  # from an earlier fit into the same folder
     from ipm.nets.ensemble import Ensemble
 
-    ensemble = Ensemble.load(models, setup=shot.setup)
+    try:
+        ensemble = Ensemble.load(models, setup=shot.setup)
+    except UserError as e:  # (nets of another setup: say how the photo was read)
+        raise UserError(f"{e}; {chosen}" if chosen else str(e)) from None
     neural = ensemble.predict(shot)
     if chosen:
         typer.echo(f"note: {chosen}", err=True)

@@ -212,8 +212,9 @@ def test_interval_coverage_counts_the_truths_inside(tmp_path):
     sigma = {k: 1e-3 for k in RAW_CONTINUOUS}
     rows = []
     for i, r in enumerate(records):
+        far = {k: getattr(r.params, k) * 0.5 for k in RAW_CONTINUOUS}  # m halved: a whole m
         fit = r.params.to_dict() if i < 3 else r.params.replace(
-            **{k: getattr(r.params, k) * 0.5 for k in RAW_CONTINUOUS}).to_dict()
+            **{**far, "m": r.params.m // 2}).to_dict()
         rows.append({"image": str(r.image), "neural": fit, "refined": fit, "improved": False,
                      "intervals": {}})
     report = tmp_path / "report"

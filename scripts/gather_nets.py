@@ -2,8 +2,9 @@
 """Gathers training runs' nets into one ensemble folder (written beside, then swapped in); a
 net of a later run replaces the same net of an earlier one.  A run given as RUN=SUFFIX has
 its nets renamed NAME+SUFFIX (the detail nets, beside the nets of the same parameters).
-OUT may be one of the RUNs (a fine-tune replacing some of its nets).  The last step of
-scripts/make_nets.sh:
+OUT may be one of the RUNs (a fine-tune replacing some of its nets).  The nets are stored in
+float16, which reads as float32 does (benchmarks/results/half_weights.md).  The last step
+of scripts/make_nets.sh:
 
     python3 scripts/gather_nets.py OUT RUN [RUN=SUFFIX ...]
 """
@@ -11,6 +12,8 @@ import json
 import shutil
 import sys
 from pathlib import Path
+
+from ipm.nets.store import halve
 
 out = Path(sys.argv[1])
 runs = [(Path(r.partition("=")[0]), r.partition("=")[2]) for r in sys.argv[2:]]
@@ -33,6 +36,7 @@ setup = json.loads((runs[0][0] / "ensemble.json").read_text()).get("setup", "fro
 manifest = {"format": "ipm.nets/1", "preset": "ensemble", "setup": setup, "nets": order}
 assert sorted(p.name for p in tmp.iterdir()) == sorted(order), "a net is missing"
 (tmp / "ensemble.json").write_text(json.dumps(manifest, indent=2))
+halve(tmp)
 if (out / "README.md").exists():
     shutil.copy(out / "README.md", tmp / "README.md")
 shutil.rmtree(out, ignore_errors=True)

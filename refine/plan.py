@@ -141,12 +141,13 @@ class FitConfig:
     seeds_per_eval: int = 2
     display_scale: float = 0.5
     display_spp: int = 16
-    width: float = 0.25
-    fiber_seed: int = 0
-    rescore_seeds: tuple[int, ...] = (1, 2)
-    rescore_top: int = 3
-    prior_weight: float = 1.0
-    box_sigmas: float = 3.0
+    # a stage's settings, defaulting to the one search's (SearchOptions holds them)
+    width: float = SearchOptions.width
+    fiber_seed: int = SearchOptions.fiber_seed
+    rescore_seeds: tuple[int, ...] = SearchOptions.rescore_seeds
+    rescore_top: int = SearchOptions.rescore_top
+    prior_weight: float = SearchOptions.prior_weight
+    box_sigmas: float = SearchOptions.box_sigmas
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.scale <= 1 or not 0.05 <= self.display_scale <= 1:

@@ -3,7 +3,7 @@
 outside the nets' range and searches its thickness first (:func:`ipm.refine.plan.plan`), and
 within which a backlit fit chooses its ply count (the choice reads the core's outline at the yarn's
 thickness; where the nets' thickness is far from the photo's, it misread the count:
-docs/real-photos-count at cc59bd2).  Per photo, :func:`ipm.refine.measure.width_ratio` of the
+real-photos-count@35cd98b at cc59bd2).  Per photo, :func:`ipm.refine.measure.width_ratio` of the
 nets' guess in the photo's setup, before its fiber colour is matched to the photo, as ``ipm
 fit`` decides the switch.
 

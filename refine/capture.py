@@ -62,7 +62,7 @@ def sharpness(srgb: np.ndarray) -> float:
 
     Why not the fiber texture of the core: a real core's fibers are packed more densely
     than a render's, so its texture is lower at any focus, and a blur matched on it made
-    renders softer than the photos' hairs (docs/real-photos-capture-texture, made with it;
+    renders softer than the photos' hairs (real-photos-capture-texture@f3f2495, made with it;
     see its contact sheet)."""
     from skimage.filters import gaussian
 

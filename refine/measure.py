@@ -87,7 +87,7 @@ def match_size(objective: RenderObjective, params: YarnParams, photo: np.ndarray
     identifiable, nor ``r_x`` lit from behind: docs/identifiability.md and its
     contour page).  A search of the three on the real photos,
     thinner than the nets know, flattened the plies (``r_y`` well below ``r_x``:
-    docs/real-photos-contour), and flattened plies bump the core's outline twice per ply
+    real-photos-contour@dbf762e), and flattened plies bump the core's outline twice per ply
     crossing.  Scaling keeps the nets' proportions and matches the width.  Whether a fit
     from the sized start does better is not yet measured, so it is an option."""
     target = image_core_width(photo)

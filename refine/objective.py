@@ -38,10 +38,10 @@ from ipm.render.scene import Frame
 #: seed noise for less (the histogram at its former weight 10 made most of the loss's
 #: noise), so they are off.  The silhouette's edges tell an even ply count from an odd one,
 #: which the stripes' period cannot (``python -m ipm.benchmarks.ply_count_loss``; the real
-#: photos' ply counts in docs/real-photos-silhouette).  The contour reads the ply period
+#: photos' ply counts in real-photos-silhouette@e1028a1).  The contour reads the ply period
 #: off the core's outline, where the stripes inside a real photo's grey core and a render's
 #: opaque one differ; with it the real photos' fitted periods came nearer theirs
-#: (docs/real-photos-contour against docs/real-photos-material), though alone it is not
+#: (real-photos-contour@dbf762e against real-photos-material@090878d), though alone it is not
 #: where the period's minimum is (benchmarks/results/pitch_profile_real.md).
 DEFAULT_WEIGHTS = {"core": 1.0, "flyaways": 0.0, "orientation": 0.0, "spectrum": 0.0,
                    "period": 1.0, "stripes": 2.0, "silhouette": 1.0, "contour": 0.25,

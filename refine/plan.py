@@ -10,13 +10,13 @@ The stages, each searched from the best of the one before, and the loss groups
   the nets' stripe period; before the first stage that moves ``alpha_ply``, in a setup with
   such groups, unless ``nets_ply_count``.  Why not always first: the choice sees the
   thickness it starts from, and on the real photos, thinner than any yarn the nets know, at
-  the nets' thickness it chose 4 plies for most of the 2-ply yarns (docs/real-photos-count).
+  the nets' thickness it chose 4 plies for most of the 2-ply yarns (real-photos-count@35cd98b).
 * **thickness** (``R_ply``, ``r_x``, ``r_y`` without ``alpha_ply``): the whole loss but the
   ``contour``.  At a pitch not yet fitted the outline's period is wrong, and plies
   flattened to half their width bump the outline twice as often: on the real photos a
   thickness stage scored with the contour left the pitch stage after it at about twice the
-  photo's period on several photos (docs/real-photos-contour against
-  docs/real-photos-contour-pitch).
+  photo's period on several photos (real-photos-contour@dbf762e against
+  real-photos-contour-pitch@8c0ba8a).
 * **flyaways** (flyaway parameters alone): the ``flyaways`` group alone.  Flyaways that
   cross the core band move the period and stripes groups too, and on a real photo a grid of
   flyaway amounts and lengths moved those more than the flyaway group: scored by every
@@ -26,14 +26,14 @@ The stages, each searched from the best of the one before, and the loss groups
   pitch alone keeps the thickness: a ply twist tighter or looser than the photo's then
   makes up for a ply radius the nets got wrong (benchmarks/results/pitch_profile_*_val.md);
   on the real photos the core group pulled the pitch back towards the nets' where the
-  stripes put it at the photo's (docs/real-photos-flyaways against docs/real-photos-pitch).
+  stripes put it at the photo's (real-photos-flyaways@4c80682 against real-photos-pitch@31dc737).
   The contour, the outline's period, helps where the outline is a crisp silhouette.
 * any other stage: the whole loss.
 
 A setup's default search is the ply twist alone: the loss also has its minimum at the truth
 for ``R_ply`` and ``r_x`` (docs/identifiability.md), but a second stage searching them from
 the twist's best moved them further from the truth than the nets' values
-(docs/compare-staged), and the image statistics do not see ``alpha``, so the other
+(compare-staged@26a8a03), and the image statistics do not see ``alpha``, so the other
 parameters keep the nets' values.
 
 The gates of :func:`plan`, each a different list of stages:
@@ -46,14 +46,14 @@ The gates of :func:`plan`, each a different list of stages:
   each stage of several parameters (:data:`OUTSIDE_POLISH`); the fibers per ply following
   the plies' width (``keep_cover``, :func:`ipm.refine.search.same_cover`); one fiber seed
   per evaluation (:data:`OUTSIDE_SEEDS_PER_EVAL`).  The recipe that fitted the real photos
-  lit from behind (docs/real-photos-default), whose yarns are thinner than any the nets
+  lit from behind (real-photos-default@d6136c7), whose yarns are thinner than any the nets
   know.  Not where the core's half-contrast width follows the light: there ipm's own
   held-out renders, whose thickness the nets read well, reached the gate too.
 * **an unsure ply count**: a fit that keeps the nets' count searches ``alpha_ply`` only if
   the nets give their count at least ``sure_count``; else its stages lose ``alpha_ply``
   (none left: no search).  The search matches the photo's stripe period ``alpha_ply / n``,
   so with a wrong count it fits a wrong pitch, and the refinement lost where the nets'
-  count was wrong what it gained where it was right (docs/compare-tuned).
+  count was wrong what it gained where it was right (compare-tuned@221fbc4).
 """
 
 from __future__ import annotations
@@ -72,13 +72,13 @@ THICKNESS = ("R_ply", "r_x", "r_y")
 #: nets can read: a fit searches it as outside their range, and chooses its ply count only
 #: once within it, since the choice reads the core's outline at that thickness (on the real
 #: photos, whose yarns the nets render far wider, it misread the count:
-#: docs/real-photos-count; the widths of each set of photos: count_width.md).
+#: real-photos-count@35cd98b; the widths of each set of photos: count_width.md).
 COUNT_WIDTH_FACTOR = 1.5
 #: The polish of each stage of several parameters of a yarn outside the nets' range.
 OUTSIDE_POLISH = 16
 #: Fiber seeds per evaluation of that search: one, at half the renders of two.  Its stages
 #: re-score their best candidates on more seeds, and on the real photos one seed met the
-#: targets as two did, within the spread between runs (docs/real-photos-one-seed).
+#: targets as two did, within the spread between runs (real-photos-one-seed@8468b85).
 OUTSIDE_SEEDS_PER_EVAL = 1
 
 _PARAMS_HELP = ("parameters to search (any but the ply count n; m is rounded), "

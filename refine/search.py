@@ -75,11 +75,11 @@ class SearchOptions:
     polish: evaluations of a local search (:data:`POLISH_ALGORITHM`) from the best point, if the
     stage has two or more parameters, at the scale of the global search's finest cells: DIRECT-L
     with 30 evaluations in three parameters only samples a grid of ninths of the box, and the
-    fits of different photos landed on the same grid points (docs/real-photos-staged).  In one
+    fits of different photos landed on the same grid points (real-photos-staged@b2566ce).  In one
     parameter its cells are already a few hundredths of the box, and polishing `alpha_ply`
     followed one fiber seed's side minima of the stripe loss instead
-    (docs/real-photos-polish-every-stage against docs/real-photos-staged).  keep_cover: a stage
-    that moves the ply radii ``r_x``, ``r_y`` but not ``m`` scales ``m`` with them
+    (real-photos-polish-every-stage@7cc1a3c against real-photos-staged@b2566ce).  keep_cover:
+    a stage that moves the ply radii ``r_x``, ``r_y`` but not ``m`` scales ``m`` with them
     (:func:`same_cover`)."""
 
     params: tuple[str, ...] = ("alpha_ply",)
@@ -237,10 +237,10 @@ def same_cover(p: YarnParams, start: YarnParams) -> YarnParams:
     behind then stays as dark as in the render of ``start``.  Why: a search that narrows the plies
     of a yarn the nets read too thick would otherwise pack their fiber count into far
     narrower plies and render an opaque black core whose ply stripes no longer show (most
-    real-photo fits that missed the stripe period, docs/real-photos-two-seeds);
+    real-photo fits that missed the stripe period, real-photos-two-seeds@b73156f);
     keeping the fibers per area instead (``m`` with ``r_x r_y``) rendered see-through
-    bundles whose core read too wide (docs/real-photos-keep-fill).  With the cover kept the
-    real-photo fits met their targets best (docs/real-photos-default)."""
+    bundles whose core read too wide (real-photos-keep-fill@616f8d5).  With the cover kept the
+    real-photo fits met their targets best (real-photos-default@d6136c7)."""
     scale = np.sqrt(p.r_x * p.r_y / (start.r_x * start.r_y))
     return p.replace(m=clipped("m", start.m * scale))
 

@@ -96,7 +96,7 @@ def _centred_deviation(gray: Tensor) -> Tensor:
     Why in those units: the core's contrast is the capture's (lamps, exposure, background
     level, the fibers' translucency), not the yarn's shape.  A real microscope photo's grey,
     low-contrast core matched a thinner render's core best in absolute units, so fitted
-    cores came out thinner than the photos' (README, "Real photos"; docs/real-photos-staged).
+    cores came out thinner than the photos' (benchmarks/README.md, "Real photos: thickness first").
     The autocorrelation, the stripes and the spectrum were already invariant to it."""
     bg, centre = yarn_centre(gray)
     dev = centre_rows(gray - bg.view(-1, 1, 1, 1), centre)
@@ -170,7 +170,8 @@ def _crossings(d: Tensor) -> Tensor:
     a defocused one count alike, as long as it stands out by FIBER_LEVEL; the darkness they
     add to a row (the statistic's former form, the per-row mean minus the median) depends
     on how opaque and sharp each fiber is, which differs between a render and a photo.
-    How the fitted renders' hairiness compares with real photos': docs/real-photos-flyaways."""
+    How the fitted renders' hairiness compares with real photos':
+    benchmarks/results/real_photos.md."""
     x = kornia.filters.gaussian_blur2d(d[:, None].abs(), (5, 5), (1.0, 1.0),
                                        border_type="replicate")[:, 0]
     fiber = torch.sigmoid((x - FIBER_LEVEL) / FIBER_SOFTNESS)

@@ -4,6 +4,7 @@ commands only: importing ``ipm`` (and its CLI) must stay light."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -13,7 +14,7 @@ import typer
 from ipm.errors import UserError
 from ipm.io import check_not_inputs, check_output
 from ipm.params import YARN_HELP
-from ipm.setups import DEFAULT_SETUP, PHOTO_SETUP_HELP, SETUP_HELP
+from ipm.setups import DEFAULT_SETUP, PHOTO_SETUP_HELP, SETUP_HELP, setup_of
 
 DEFAULT_RENDER_SCALE = 0.25
 DEFAULT_RENDER_SPP = 16
@@ -53,6 +54,9 @@ def render(
     setup: Annotated[str | None, typer.Option(
         help=f"{SETUP_HELP}; default: the one a fit's params.json or a render's sidecar "
              f"records, else {DEFAULT_SETUP}")] = None,
+    card: Annotated[float | None, typer.Option(
+        min=0.0, max=1.0, help="the card's albedo behind a yarn lit from the front, 0 (black) "
+        "to 1 (white); default: the scene's dark card")] = None,
     force: ForceOpt = False,
 ) -> None:
     """Render a yarn like a photo of one of the capture setups; writes ``<out>.json`` beside
@@ -68,6 +72,11 @@ def render(
             typer.echo(f"note: rendered {setup}, the setup {params} records; --setup to "
                        "choose", err=True)
     options = setup_options(setup or DEFAULT_SETUP)
+    if card is not None:
+        if setup_of(options.setup).light_behind:
+            raise UserError(f"--card is the card behind a yarn lit from the front; the "
+                            f"{options.setup} setup's background is its light panel")
+        options = replace(options, backdrop=card)
     check_output(out)
     if format is RenderFormat.png and out.suffix.lower() != ".png":
         raise UserError(f"{out}: ipm render writes PNG images; give a .png name")

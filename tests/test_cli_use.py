@@ -168,6 +168,25 @@ def test_render_writes_png_only(golden, tmp_path):
     assert not list(tmp_path.glob("x.*"))
 
 
+def test_render_on_a_white_card(golden, tmp_path):
+    import numpy as np
+    from skimage.io import imread
+
+    def card_level(*args):
+        out = tmp_path / f"c{len(args)}.png"
+        r = ipm("render", golden, "-o", out, "--scale", "0.1", "--spp", "4", *args)
+        assert r.returncode == 0, r.stderr
+        assert json.loads(out.with_suffix(".json").read_text())["scene"]["backdrop"] == (
+            float(args[1]) if args else 0.03)
+        return float(np.median(imread(out)[:4, :, :3]))  # the top rows: the card
+
+    dark, white = card_level(), card_level("--card", "1")
+    assert white > 150 and dark < 60, (dark, white)
+    one_line_error(ipm("render", golden, "-o", tmp_path / "b.png", "--setup", "backlit",
+                       "--card", "1"), "light panel")
+    assert not (tmp_path / "b.png").exists()
+
+
 def test_unknown_parameter_keys_are_named(golden, tmp_path):
     d = json.loads(golden.read_text())
     d["twsit"] = 3

@@ -3,9 +3,10 @@ again in the scene's nominal look with the card's albedo times each ``--gains`` 
 varied look the nets were trained on spans :data:`ipm.render.photometric.LOOK`'s
 ``backdrop_gain``; a white card is about 30 times the scene's), read by the shipped nets.
 What ``ipm fit``'s warning on a light card (:func:`ipm.refine.capture.card_warning`)
-stands on.  Each render is read once more with its card darkened back to the scene's
-(:func:`darkened`, knowing the factor: an upper bound for a normalisation of the card
-before the nets, which ``ipm`` does not do).
+stands on.  Each render is read three ways: its card as it shows, its card brought to the
+scene's as the nets read every photo (:meth:`ipm.photo.Photo.as_nets_read`, the card's
+level estimated from the photo), and its card darkened knowing the factor
+(:func:`ipm.photo.recarded`: an upper bound for that estimate).
 
     python -m ipm.benchmarks.card_sweep --data data/test --count 30 \\
         --out benchmarks/results/card_sweep.md
@@ -22,25 +23,13 @@ from ipm.benchmarks.nets_accuracy import baseline_mae, mae_by_param
 from ipm.dataset import read_manifest
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.params import RAW_CONTINUOUS
-from ipm.photo import Photo, linear_to_srgb
+from ipm.photo import Photo, linear_to_srgb, recarded
 
 #: Samples per pixel of the renders: as many as the held-out sets'.
 SPP = 16
-
-
-def darkened(linear: np.ndarray, factor: float) -> np.ndarray:
-    """``linear`` (H, W, 3) with its card's light taken down ``factor`` times where the card
-    shows: each pixel loses ``(1 - a)`` of the difference, ``a`` the yarn's cover of it, as
-    its distance from the card's colour (the median of the top and bottom rows) over the
-    core's (the median of the five rows about the row farthest from the card)."""
-    h = linear.shape[0]
-    edge = max(1, h // 12)
-    card = np.median(np.concatenate([linear[:edge], linear[-edge:]]).reshape(-1, 3), axis=0)
-    dist = np.abs(linear - card).sum(axis=-1)
-    row = int(np.argmax(np.median(dist, axis=1)))
-    core = np.median(linear[max(0, row - 2):row + 3].reshape(-1, 3), axis=0)
-    cover = np.clip(dist / max(float(np.abs(core - card).sum()), 1e-6), 0, 1)[..., None]
-    return np.maximum(linear - (1 - cover) * card * (1 - 1 / factor), 0)
+#: How the nets read each render's card: as it shows, brought to the scene's card by the
+#: photo's own estimate (what ``ipm`` does), or darkened knowing the factor.
+WAYS = ("as shown", "estimated", "known factor")
 
 
 def main() -> None:
@@ -63,30 +52,31 @@ def main() -> None:
     ens = Ensemble.load(None, setup="frontlit")
     renderer = Renderer(options=setup_options("frontlit"))
     scale = PIXEL_SIZE_MM / records[0].pixel_size_mm
-    pred: dict[tuple[float, bool], list] = {(g, d): [] for g in gains for d in (False, True)}
+    pred: dict[tuple[float, str], list] = {(g, w): [] for g in gains for w in WAYS}
     for i, rec in enumerate(records):
         for g in gains:
             linear = renderer.render(rec.params, rec.seed, scale, SPP,
                                      photometric=Photometric(backdrop_gain=g))
-            for dark in (False, True):
-                img = darkened(linear, g) if dark else linear
+            for way in WAYS:
+                img = recarded(linear, g) if way == "known factor" else linear
                 photo = Photo(np.clip(linear_to_srgb(img), 0, 1), rec.pixel_size_mm, "frontlit")
-                pred[g, dark].append(ens.predict(photo))
+                ens.card_normalised = way == "estimated"
+                pred[g, way].append(ens.predict(photo))
         print(f"{i + 1}/{len(records)}", flush=True)
     true = [r.params for r in records]
     base_mae = baseline_mae(ens, true, records[0].pixel_size_mm, RAW_CONTINUOUS)
     lo, hi = LOOK["backdrop_gain"]
-    rows = ["| card albedo (times the scene's) | trained on | card darkened | ply count right | "
+    rows = ["| card albedo (times the scene's) | trained on | card read | ply count right | "
             + " | ".join(f"{k} MAE / mean's" for k in RAW_CONTINUOUS) + " |",
             "|---|---|---|---|" + "---|" * len(RAW_CONTINUOUS)]
     data = {}
-    for (g, dark), ps in pred.items():
+    for (g, way), ps in pred.items():
         right = float(np.mean([p.n == t.n for p, t in zip(ps, true, strict=True)]))
         share = {k: v / base_mae[k] for k, v in mae_by_param(ps, true, RAW_CONTINUOUS).items()}
-        data[f"{g:g}{' darkened' if dark else ''}"] = {"n_right": right, "mae_over_mean": share}
-        rows.append(f"| {g:g} | {'yes' if lo <= g <= hi else 'no'} | "
-                    f"{'yes' if dark else 'no'} | {100 * right:.0f}% | "
-                    + " | ".join(f"{v:.2f}" for v in share.values()) + " |")
+        data[f"{g:g} {way}"] = {"n_right": right, "mae_over_mean": share}
+        rows.append(f"| {g:g} | {'yes' if lo <= g <= hi else 'no'} | {way} | "
+                    f"{100 * right:.0f}% | " + " | ".join(f"{v:.2f}" for v in share.values())
+                    + " |")
     command = (f"python -m ipm.benchmarks.card_sweep --data {args.data} --count {args.count}"
                + (f" --gains {args.gains}" if args.gains != "1,3,10,30" else "")
                + (f" --out {args.out}" if args.out else ""))
@@ -94,9 +84,10 @@ def main() -> None:
             + f"\n{len(records)} yarns of `{args.data}` rendered again in the scene's nominal "
             f"look, {SPP} spp, the card's albedo ({renderer.options.backdrop:g}) times each "
             f"factor (at most 1); the nets' varied look spans {lo:g}-{hi:g} times.  MAE over "
-            "the predict-the-mean baseline's on the same yarns; darkened: the card's light taken "
-            "back to the scene's where the yarn does not cover it (`darkened`), knowing the "
-            "factor.\n\n" + "\n".join(rows) + "\n")
+            "the predict-the-mean baseline's on the same yarns.  Card read: as shown; estimated: "
+            "brought to the scene's card by the photo's own estimate of its level, as `ipm` "
+            "reads every frontlit photo (`Photo.as_nets_read`); known factor: darkened back "
+            "knowing the factor (`recarded`).\n\n" + "\n".join(rows) + "\n")
     publish(text, args.out, data)
 
 

@@ -314,6 +314,14 @@ class Photo:
                     f"{self.name}: the yarn runs vertically; turned by 90 degrees")
         return self, None
 
+    def as_nets_read(self) -> Photo:
+        """The photo as the nets read it, in training and in use: lit from the front, its
+        card brought to the level of the scene's card (:func:`card_normalised`)."""
+        card = setup_of(self.setup).card_linear
+        if card is None:
+            return self
+        return replace(self, image=card_normalised(self.image, card))
+
     def inverted(self) -> Photo:
         """The negative: a capture of a dark yarn on a light background made to look
         like the scene's light yarn on a dark card."""
@@ -332,6 +340,47 @@ def srgb_to_linear(x: np.ndarray) -> np.ndarray:
     """The sRGB transfer function, inverted (IEC 61966-2-1)."""
     x = np.asarray(x, dtype=np.float32)
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def card_factor(linear: np.ndarray, level: float) -> float:
+    """How many times lighter than ``level`` (linear grey) the card behind a yarn that runs
+    left to right shows in ``linear`` (H, W, 3): the median of its top and bottom twelfths,
+    where flyaways are sparse."""
+    h = linear.shape[0]
+    edge = max(1, h // 12)
+    card = np.median(np.concatenate([linear[:edge], linear[-edge:]]).reshape(-1, 3), axis=0)
+    return float(card.mean()) / level
+
+
+def recarded(linear: np.ndarray, factor: float) -> np.ndarray:
+    """``linear`` (H, W, 3) with its card's light divided by ``factor`` where the card shows:
+    each pixel loses ``1 - a`` of the card's change, ``a`` the yarn's cover of it, taken as
+    the pixel's distance from the card's colour (its top and bottom twelfths) over the
+    core's (the five rows about the row farthest from the card), both less twice the card's
+    own noise (the median distance in those twelfths).  The yarn's own light, which does not
+    come from the card, stays."""
+    h = linear.shape[0]
+    edge = max(1, h // 12)
+    border = np.concatenate([linear[:edge], linear[-edge:]]).reshape(-1, 3)
+    card = np.median(border, axis=0)
+    noise = 2 * float(np.median(np.abs(border - card).sum(axis=-1)))
+    dist = np.abs(linear - card).sum(axis=-1)
+    row = int(np.argmax(np.median(dist, axis=1)))
+    core = np.median(linear[max(0, row - 2):row + 3].reshape(-1, 3), axis=0)
+    span = max(float(np.abs(core - card).sum()) - noise, 1e-6)
+    cover = np.clip((dist - noise) / span, 0, 1)[..., None]
+    return np.clip(linear - (1 - cover) * card * (1 - 1 / factor), 0, 1).astype(linear.dtype)
+
+
+def card_normalised(image: np.ndarray, level: float) -> np.ndarray:
+    """An sRGB photo (H, W, 3) of a yarn lit from the front with its card brought to
+    ``level`` (linear grey), estimated from the photo itself (:func:`card_factor`,
+    :func:`recarded`): a yarn on a white card as on the scene's dark one."""
+    linear = srgb_to_linear(image)
+    factor = card_factor(linear, level)
+    if not np.isfinite(factor) or factor <= 0:
+        return image
+    return linear_to_srgb(recarded(linear, factor)).astype(image.dtype)
 
 
 def linear_to_srgb(x: np.ndarray) -> np.ndarray:

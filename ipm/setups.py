@@ -38,7 +38,10 @@ class CaptureSetup:
     (none: the nets' count stands).  stages: a fit's default search (``ipm fit --params``
     syntax).  outside_stages: the search of a yarn whose core renders far wider or narrower
     than the photo's at the nets' reading (None: this setup's core width does not tell
-    such a yarn, and the default search stands)."""
+    such a yarn, and the default search stands).  card_linear: the level (linear grey) of
+    the card in the scene's own renders, lamps in front; the nets read a photo with its card
+    brought to it (:func:`ipm.photo.card_normalised`), so that they read a yarn on any card
+    as on the one they were trained on (None: the background is the light)."""
 
     name: str
     summary: str
@@ -50,13 +53,14 @@ class CaptureSetup:
     count_groups: tuple[str, ...] = ()
     stages: str = "alpha_ply"
     outside_stages: str | None = None
+    card_linear: float | None = None
 
 
 #: The setups, the default first.  Why these groups and stages: the docstrings of
 #: :mod:`ipm.refine.objective` and :mod:`ipm.refine.plan`.
 SETUPS: dict[str, CaptureSetup] = {s.name: s for s in (
     CaptureSetup("frontlit", "colour macro photo under soft boxes, the paper's",
-                 light_behind=False, grey=False),
+                 light_behind=False, grey=False, card_linear=0.016),
     CaptureSetup("backlit", "grey silhouette on a light panel, as hairiness testers and "
                  "microscopes", light_behind=True, grey=True,
                  scene={"integrator": "path", "max_depth": 16, "room_light": 0.05},

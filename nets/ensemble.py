@@ -46,6 +46,9 @@ class Ensemble:
     info: dict[str, dict]
     folder: Path
     setup: str = DEFAULT_SETUP
+    #: False: the nets read a photo's card as it shows (:meth:`Photo.as_nets_read` brings
+    #: it to the scene's); what benchmarks/card_sweep.py compares with.
+    card_normalised: bool = True
 
     @classmethod
     def load(cls, folder: str | Path | None = None, device: str = "cpu",
@@ -170,6 +173,8 @@ class Ensemble:
         if photo.setup != self.setup:
             raise UserError(f"{photo.name} is a {photo.setup} photo; the nets "
                             f"in {self.folder} read {self.setup} ones")
+        if self.card_normalised:
+            photo = photo.as_nets_read()
         scaled: dict[float, np.ndarray] = {}
         result = {}
         for name, net in self.chosen(photo.pixel_size_mm).items():

@@ -179,3 +179,22 @@ def test_photo_inverted_and_defocused():
 def test_srgb_round_trip():
     x = np.linspace(0, 1, 101, dtype=np.float32)
     np.testing.assert_allclose(linear_to_srgb(srgb_to_linear(x)), x, atol=1e-5)
+
+
+@pytest.mark.parametrize("card", [0.004, 0.016, 0.2, 0.6])
+def test_the_nets_read_any_card_as_the_scenes(card):
+    # a yarn band (rows 40-60, a warm colour) with a few flyaways over a grey card of linear
+    # level `card`; the nets' view brings the card to the scene's level, the yarn kept
+    from ipm.setups import DEFAULT_SETUP, setup_of
+
+    level = setup_of(DEFAULT_SETUP).card_linear
+    rng = np.random.default_rng(1)
+    yarn = np.array([0.35, 0.25, 0.15])
+    linear = np.full((100, 300, 3), card) + rng.normal(0, card * 0.02, (100, 300, 3))
+    linear[40:60] = yarn
+    linear[20:40, ::37] = yarn  # hairs
+    photo = Photo(linear_to_srgb(np.clip(linear, 0, 1)).astype(np.float32))
+    seen = srgb_to_linear(photo.as_nets_read().image)
+    assert np.median(seen[:10]) == pytest.approx(level, rel=0.05)
+    assert np.median(seen[45:55], axis=(0, 1)) == pytest.approx(yarn, rel=0.02)
+    assert seen[30, 37] == pytest.approx(yarn, rel=0.05)

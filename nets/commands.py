@@ -224,15 +224,16 @@ def saliency(
 
     from ipm.io import atomic_path, check_not_inputs, check_output
     from ipm.nets.config import SaliencyConfig
-    from ipm.nets.data import to_input
-    from ipm.nets.saliency import net_for, to_image
-    from ipm.nets.saliency import saliency as saliency_map
     from ipm.photo import Photo, pixel_size_of
 
     check_output(out)
     check_not_inputs([out], [photo])
     cfg = SaliencyConfig(photo, param, models, pixel_size_of(photo, pixel_size, calibration),
                          invert)
+    from ipm.nets.data import to_input  # torch: after the checks, which are one line
+    from ipm.nets.saliency import net_for, to_image
+    from ipm.nets.saliency import saliency as saliency_map
+
     shot = Photo.read(cfg.photo, cfg.pixel_size)
     net, columns = net_for(_load(cfg.models, "cpu"), cfg.param, cfg.pixel_size)
     scaled = (shot.inverted() if cfg.invert else shot).at_pitch(net.config.input_scale,

@@ -9,9 +9,11 @@ from typing import Any
 
 from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM
-from ipm.nets.encoders import ENCODERS
 from ipm.nets.tasks import ENSEMBLE_TASKS, REG_TASKS, TASKS
 from ipm.setups import DEFAULT_SETUP, check_setup_name, setup_of
+
+#: The encoders :mod:`ipm.nets.encoders` builds: blocks per stage (a ResNet's, or a ConvNeXt's).
+ENCODERS = {"resnet18": (2, 2, 2, 2), "resnet34": (3, 4, 6, 3), "convnext": (2, 2, 2, 2)}
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-ENCODERS = {"resnet18": (2, 2, 2, 2), "resnet34": (3, 4, 6, 3), "convnext": (2, 2, 2, 2)}
+from ipm.nets.config import ENCODERS
+
 BASE_WIDTHS = (64, 128, 256, 512)
 DOWNSAMPLING = 32
 

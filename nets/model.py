@@ -10,8 +10,9 @@ import torch
 from torch import nn
 
 from ipm.frame import FRAME_HEIGHT_PX, FRAME_WIDTH_PX
+from ipm.nets.config import ENCODERS
 from ipm.nets.decoder import Decoder
-from ipm.nets.encoders import ENCODERS, Encoder, latent_channels
+from ipm.nets.encoders import Encoder, latent_channels
 from ipm.nets.heads import RegressionHead
 from ipm.nets.tasks import TASKS, Task
 

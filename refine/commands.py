@@ -246,11 +246,12 @@ def compare(
     import sys
 
     from ipm.io import write_text
-    from ipm.nets.ensemble import Ensemble
     from ipm.refine import compare as cmp
 
     listed = cmp.photos_in(photos, pixel_size, count, setup, calibration)
     setup = listed[0].setup
+    from ipm.nets.ensemble import Ensemble  # torch: after the checks, which are one line
+
     ensemble = Ensemble.load(models, setup=setup)
     prepare_folder(out)
     stages = config.stage_params(setup)

@@ -24,10 +24,10 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from statistics import NormalDist
 
 import nlopt
 import numpy as np
-from scipy.stats import chi2
 
 from ipm.errors import UserError
 from ipm.params import PAPER_INTERVALS, YarnParams, clipped
@@ -41,8 +41,9 @@ Objective = Callable[[YarnParams, int], float]
 #: The probability the intervals are meant to hold the truth with.
 LEVEL = 0.8
 #: How far above its lowest the objective (in seed-noise units) may lie inside an interval:
-#: half the LEVEL quantile of a chi-square of one degree of freedom.
-PROFILE_RISE = 0.5 * float(chi2.ppf(LEVEL, 1))
+#: half the LEVEL quantile of a chi-square of one degree of freedom (the square of the normal
+#: quantile at (1 + LEVEL) / 2).
+PROFILE_RISE = 0.5 * NormalDist().inv_cdf((1 + LEVEL) / 2) ** 2
 
 #: The parameters a search can move: all but the ply count ``n``, which a fit chooses among the
 #: nets' most likely counts (:func:`search_ply_counts`).  An integer parameter (``m``, ``g``)

@@ -342,26 +342,27 @@ def srgb_to_linear(x: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
+def _card_pixels(linear: np.ndarray) -> np.ndarray:
+    """The pixels (N, 3) of the top and bottom twelfths of an image whose yarn runs left to
+    right: the card, where flyaways are sparse."""
+    edge = max(1, linear.shape[0] // 12)
+    return np.concatenate([linear[:edge], linear[-edge:]]).reshape(-1, 3)
+
+
 def card_factor(linear: np.ndarray, level: float) -> float:
-    """How many times lighter than ``level`` (linear grey) the card behind a yarn that runs
-    left to right shows in ``linear`` (H, W, 3): the median of its top and bottom twelfths,
-    where flyaways are sparse."""
-    h = linear.shape[0]
-    edge = max(1, h // 12)
-    card = np.median(np.concatenate([linear[:edge], linear[-edge:]]).reshape(-1, 3), axis=0)
-    return float(card.mean()) / level
+    """How many times lighter than ``level`` (linear grey) the card shows in ``linear``
+    (H, W, 3): its pixels' median (:func:`_card_pixels`)."""
+    return float(np.median(_card_pixels(linear), axis=0).mean()) / level
 
 
 def recarded(linear: np.ndarray, factor: float) -> np.ndarray:
     """``linear`` (H, W, 3) with its card's light divided by ``factor`` where the card shows:
     each pixel loses ``1 - a`` of the card's change, ``a`` the yarn's cover of it, taken as
-    the pixel's distance from the card's colour (its top and bottom twelfths) over the
+    the pixel's distance from the card's colour (:func:`_card_pixels`' median) over the
     core's (the five rows about the row farthest from the card), both less twice the card's
     own noise (the median distance in those twelfths).  The yarn's own light, which does not
     come from the card, stays."""
-    h = linear.shape[0]
-    edge = max(1, h // 12)
-    border = np.concatenate([linear[:edge], linear[-edge:]]).reshape(-1, 3)
+    border = _card_pixels(linear)
     card = np.median(border, axis=0)
     noise = 2 * float(np.median(np.abs(border - card).sum(axis=-1)))
     dist = np.abs(linear - card).sum(axis=-1)

@@ -77,8 +77,9 @@ class Frames:
         return len(self.records)
 
     def _load(self, i: int) -> np.ndarray:
-        photo = self.records[i].photo().as_nets_read()
-        img = (photo.inverted() if self.invert else photo).at_pitch(self.scale, self.min_size)
+        photo = self.records[i].photo()
+        photo = (photo.inverted() if self.invert else photo).as_nets_read()
+        img = photo.at_pitch(self.scale, self.min_size)
         if self.max_height and img.shape[0] > self.max_height:
             top = (img.shape[0] - self.max_height) // 2
             img = img[top:top + self.max_height]

@@ -314,13 +314,15 @@ class Photo:
                     f"{self.name}: the yarn runs vertically; turned by 90 degrees")
         return self, None
 
-    def as_nets_read(self) -> Photo:
-        """The photo as the nets read it, in training and in use: lit from the front, its
-        card brought to the level of the scene's card (:func:`card_normalised`)."""
+    def nets_view(self, scale: float = 1.0, min_size: tuple[int, int] | None = None
+                  ) -> np.ndarray:
+        """The image as the nets read it, in training and in use: at ``scale``'s pitch
+        (:meth:`at_pitch`) and, lit from the front, with its card brought to the level of
+        the scene's card (:func:`card_normalised`), so that a yarn on a light card reads as
+        on the card the nets were trained on."""
+        img = self.at_pitch(scale, min_size)
         card = setup_of(self.setup).card_linear
-        if card is None:
-            return self
-        return replace(self, image=card_normalised(self.image, card))
+        return img if card is None else card_normalised(img, card)
 
     def inverted(self) -> Photo:
         """The negative: a capture of a dark yarn on a light background made to look

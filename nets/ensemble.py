@@ -46,8 +46,8 @@ class Ensemble:
     info: dict[str, dict]
     folder: Path
     setup: str = DEFAULT_SETUP
-    #: False: the nets read a photo's card as it shows (:meth:`Photo.as_nets_read` brings
-    #: it to the scene's); what benchmarks/card_sweep.py compares with.
+    #: False: the nets read a photo's card as it shows (:meth:`Photo.nets_view` brings it to
+    #: the scene's); what benchmarks/card_sweep.py compares with.
     card_normalised: bool = True
 
     @classmethod
@@ -173,8 +173,6 @@ class Ensemble:
         if photo.setup != self.setup:
             raise UserError(f"{photo.name} is a {photo.setup} photo; the nets "
                             f"in {self.folder} read {self.setup} ones")
-        if self.card_normalised:
-            photo = photo.as_nets_read()
         scaled: dict[float, np.ndarray] = {}
         result = {}
         for name, net in self.chosen(photo.pixel_size_mm).items():
@@ -182,7 +180,8 @@ class Ensemble:
                 continue
             s = net.config.input_scale
             if s not in scaled:
-                scaled[s] = photo.at_pitch(s, net.config.crop)
+                scaled[s] = (photo.nets_view if self.card_normalised else photo.at_pitch)(
+                    s, net.config.crop)
             x = centre_crops(scaled[s], net.config.crop, crops)
             device = next(net.parameters()).device
             result[name] = net.predict(x.to(device)).mean(0).cpu().numpy()

@@ -28,6 +28,7 @@ def test_the_bundled_ruler_is_at_0_0125_mm_per_pixel():
     assert calibrate(gray, "ruler.png").pixel_size_mm == pytest.approx(0.0125, rel=0.005)
 
 
+@pytest.mark.slow
 def test_images_without_a_scale_are_refused():
     rng = np.random.default_rng(0)
     images = {"noise": rng.random((400, 900)), "grey": np.full((300, 1000), 0.5),

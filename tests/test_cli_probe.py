@@ -265,6 +265,7 @@ def test_edit_sets_the_colour():
 
 # 9. Folder runs finish every good photo, list each bad one, exit non-zero.
 
+@pytest.mark.slow
 def test_predict_folder_goes_past_bad_files(tmp_path):
     photos, out = tmp_path / "photos", tmp_path / "out"
     photos.mkdir()
@@ -283,6 +284,7 @@ def test_predict_folder_goes_past_bad_files(tmp_path):
     assert "3 of 5 photos failed" in r.stderr
 
 
+@pytest.mark.slow
 def test_compare_lists_bad_photos_and_fails(tmp_path):
     """A photo that cannot be read and one that is gone (a dangling link): both listed, the
     report written, exit 1 (it was 0, and the dangling link aborted the run)."""
@@ -300,6 +302,7 @@ def test_compare_lists_bad_photos_and_fails(tmp_path):
 
 # 10. SIGTERM is an interruption; a run without a terminal says what it does.
 
+@pytest.mark.slow
 def test_sigterm_is_a_clean_interruption(tmp_path):
     out = tmp_path / "fit"
     proc = subprocess.Popen([sys.executable, "-m", "ipm", "fit", str(GOLDEN_PNG), "--out",

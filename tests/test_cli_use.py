@@ -87,7 +87,7 @@ def test_fit_needs_a_pixel_size(tmp_path):
 
 def test_every_command_that_reads_a_photo_needs_its_pixel_size(tmp_path):
     """No silent default anywhere: predict, saliency and compare (a folder of photos) refuse
-    a photo without --pixel-size, calibration or sidecar in one line, and take its sidecar."""
+    a photo without --pixel-size, calibration or sidecar in one line."""
     photos = tmp_path / "photos"
     photos.mkdir()
     shutil.copy(ROOT / "examples" / "golden.png", photos / "yarn.png")  # without its sidecar
@@ -97,6 +97,13 @@ def test_every_command_that_reads_a_photo_needs_its_pixel_size(tmp_path):
         one_line_error(ipm(*args), "yarn.png: its pixel size is unknown")
     assert not (tmp_path / "cmp").exists() and not (tmp_path / "s.png").exists()
     one_line_error(ipm("predict", photos / "missing.png"), "missing.png: no such file")
+
+
+@pytest.mark.slow
+def test_a_photo_is_read_at_its_sidecars_pixel_size(tmp_path):
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    shutil.copy(ROOT / "examples" / "golden.png", photos / "yarn.png")
     (photos / "yarn.json").write_text(json.dumps({"pixel_size_mm": 0.02}))
     # the sidecar it reads is an input: not overwritten by the prediction
     one_line_error(ipm("predict", photos / "yarn.png", "-o", photos / "yarn.json"),
@@ -107,6 +114,7 @@ def test_every_command_that_reads_a_photo_needs_its_pixel_size(tmp_path):
                                                   "--pixel-size", "0.02").stdout)
 
 
+@pytest.mark.slow
 def test_fit_a_backlit_photo_with_frontlit_nets_is_one_line(tmp_path):
     """`--setup backlit` reads the photo as backlit and asks for backlit nets: the frontlit
     ones are refused in one line, before any folder is made; an unknown setup too."""
@@ -120,6 +128,7 @@ def test_fit_a_backlit_photo_with_frontlit_nets_is_one_line(tmp_path):
                        "--out", tmp_path / "fit"), "unknown capture setup 'sideways'")
 
 
+@pytest.mark.slow
 def test_a_pixel_size_in_the_wrong_unit_is_refused_before_any_allocation():
     """8.5 (micrometres typed as mm) would resample the bundled photo to gigapixels (the code
     before grew to 24 GB in 12 s).  The call runs under a wrapper that reports its own
@@ -144,6 +153,7 @@ def test_photos_without_a_yarn_are_refused(tmp_path):
         one_line_error(ipm("predict", tmp_path / name, "--pixel-size", "0.02"), "no yarn found")
 
 
+@pytest.mark.slow
 def test_a_vertical_yarn_is_turned(tmp_path):
     """The bundled photo turned upright and padded to a square: the same yarn, said so."""
     import numpy as np
@@ -168,6 +178,7 @@ def test_render_writes_png_only(golden, tmp_path):
     assert not list(tmp_path.glob("x.*"))
 
 
+@pytest.mark.slow
 def test_render_on_a_white_card(golden, tmp_path):
     import numpy as np
     from skimage.io import imread
@@ -195,6 +206,7 @@ def test_unknown_parameter_keys_are_named(golden, tmp_path):
     assert r.returncode == 0 and "warning: ignored unknown parameter(s): twsit" in r.stderr
 
 
+@pytest.mark.slow
 def test_a_late_fit_error_leaves_no_empty_folder(tmp_path):
     (tmp_path / "models").mkdir()
     (tmp_path / "models" / "ensemble.json").write_text("{not json")

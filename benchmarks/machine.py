@@ -6,16 +6,18 @@ import os
 import platform
 import subprocess
 from importlib import metadata
+from pathlib import Path
 
 
 def git_commit() -> str:
     """The checked-out commit, marked if tracked code (``*.py``, ``*.sh``) differs from it:
     a report made from changes not yet committed says so."""
+    here = Path(__file__).resolve().parent  # the code's checkout, wherever the data lies
     try:
         head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, check=True).stdout.strip()
+                              text=True, check=True, cwd=here).stdout.strip()
         changed = subprocess.run(["git", "diff", "--quiet", "HEAD", "--", "*.py", "*.sh"],
-                                 capture_output=True).returncode != 0
+                                 capture_output=True, cwd=here).returncode != 0
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return f"{head} with uncommitted code changes" if changed else head

@@ -135,3 +135,18 @@ def test_an_output_file_that_is_a_folder_is_refused(tmp_path):
         r = ipm(*args)
         assert r.returncode == 2 and "is a folder" in r.stderr, (args, r.stderr)
         assert r.stderr.count("\n") == 1
+
+
+def test_the_cli_and_its_refusals_stay_light(tmp_path):
+    """Importing the CLI, and refusing a photo without a pixel size, load none of torch,
+    scipy or mitsuba: help and one-line errors come at once."""
+    from PIL import Image
+
+    Image.new("RGB", (300, 100)).save(tmp_path / "p.png")
+    code = ("import sys; from ipm.cli import main; sys.argv = ['ipm', *sys.argv[1:]]\n"
+            "try:\n    main()\nexcept SystemExit:\n    pass\n"
+            "print(sorted(m for m in ('torch', 'scipy', 'mitsuba') if m in sys.modules))")
+    for args in ((), ("predict", str(tmp_path / "p.png")),
+                 ("compare", str(tmp_path), "--out", str(tmp_path / "c"))):
+        r = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True)
+        assert r.stdout.strip().splitlines()[-1] == "[]", (args, r.stdout, r.stderr)

@@ -4,7 +4,6 @@ commands only: importing ``ipm`` (and its CLI) must stay light."""
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -14,7 +13,7 @@ import typer
 from ipm.errors import UserError
 from ipm.io import check_not_inputs, check_output
 from ipm.params import YARN_HELP
-from ipm.setups import DEFAULT_SETUP, PHOTO_SETUP_HELP, SETUP_HELP, setup_of
+from ipm.setups import DEFAULT_SETUP, PHOTO_SETUP_HELP, SETUP_HELP
 
 DEFAULT_RENDER_SCALE = 0.25
 DEFAULT_RENDER_SPP = 16
@@ -24,6 +23,9 @@ VariantOpt = Annotated[str | None, typer.Option(
 SetupOpt = Annotated[str, typer.Option(help=SETUP_HELP)]
 
 PhotoSetupOpt = Annotated[str, typer.Option(help=PHOTO_SETUP_HELP)]
+CardOpt = Annotated[float | None, typer.Option(
+    min=0.0, max=1.0, help="the card's albedo behind a yarn lit from the front, 0 (black) to 1 "
+    "(white); default: the scene's dark card")]
 ForceOpt = Annotated[bool, typer.Option("--force", help="write over an output that is an "
                                         "input, or a file this command did not make")]
 
@@ -54,9 +56,7 @@ def render(
     setup: Annotated[str | None, typer.Option(
         help=f"{SETUP_HELP}; default: the one a fit's params.json or a render's sidecar "
              f"records, else {DEFAULT_SETUP}")] = None,
-    card: Annotated[float | None, typer.Option(
-        min=0.0, max=1.0, help="the card's albedo behind a yarn lit from the front, 0 (black) "
-        "to 1 (white); default: the scene's dark card")] = None,
+    card: CardOpt = None,
     force: ForceOpt = False,
 ) -> None:
     """Render a yarn like a photo of one of the capture setups; writes ``<out>.json`` beside
@@ -71,12 +71,7 @@ def render(
         if setup is not None and setup != DEFAULT_SETUP:
             typer.echo(f"note: rendered {setup}, the setup {params} records; --setup to "
                        "choose", err=True)
-    options = setup_options(setup or DEFAULT_SETUP)
-    if card is not None:
-        if setup_of(options.setup).light_behind:
-            raise UserError(f"--card is the card behind a yarn lit from the front; the "
-                            f"{options.setup} setup's background is its light panel")
-        options = replace(options, backdrop=card)
+    options = setup_options(setup or DEFAULT_SETUP, card)
     check_output(out)
     if format is RenderFormat.png and out.suffix.lower() != ".png":
         raise UserError(f"{out}: ipm render writes PNG images; give a .png name")
@@ -241,6 +236,7 @@ def generate(
     = None,
     variant: VariantOpt = None,
     setup: SetupOpt = DEFAULT_SETUP,
+    card: CardOpt = None,
     ray: Annotated[str | None, typer.Option(help="render on Ray instead of a local pool: "
                                             "'auto' joins a running cluster, 'local' starts "
                                             "one, or host:port (pip install -e '.[ray]')")]
@@ -269,7 +265,7 @@ def generate(
                            photometric=(PhotometricRanges(look=vary_look, material=vary_material)
                                         if photometric
                                         else NO_VARIATION),
-                           scene=setup_options(setup), view=view)
+                           scene=setup_options(setup, card), view=view)
     with progress_bar("{task.fields[rate]}") as bar:
         task = bar.add_task(f"{split} -> {out}", total=count, rate="")
         start: list[tuple[float, int]] = []

@@ -213,10 +213,17 @@ def look_parameters(opts: SceneOptions) -> dict[str, Any]:
     return {"backdrop.bsdf.reflectance.value": opts.backdrop, **lamps, **room}
 
 
-def setup_options(name: str) -> SceneOptions:
+def setup_options(name: str, card: float | None = None) -> SceneOptions:
     """The scene of capture setup ``name`` (:data:`ipm.setups.SETUPS`; one line naming the
-    choices if unknown); ``--setup NAME`` picks one in every command."""
-    return SceneOptions(setup=name, **setup_of(name).scene)
+    choices if unknown); ``--setup NAME`` picks one in every command.  ``card``: the card's
+    albedo behind a yarn lit from the front (``--card``; refused for a light panel)."""
+    opts = SceneOptions(setup=name, **setup_of(name).scene)
+    if card is None:
+        return opts
+    if setup_of(name).light_behind:
+        raise UserError(f"--card is the card behind a yarn lit from the front; the {name} "
+                        "setup's background is its light panel")
+    return replace(opts, backdrop=card)
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ varied look the nets were trained on spans :data:`ipm.render.photometric.LOOK`'s
 ``backdrop_gain``; a white card is about 30 times the scene's), read by the shipped nets.
 What ``ipm fit``'s warning on a light card (:func:`ipm.refine.capture.card_warning`)
 stands on.  Each render is read three ways: its card as it shows, its card brought to the
-scene's as the nets read every photo (:meth:`ipm.photo.Photo.nets_view`, the card's
+scene's as the nets read every photo (:meth:`ipm.photo.Photo.scene_view`, the card's
 level estimated from the photo), and its card darkened knowing the factor
 (:func:`ipm.photo.recarded`: an upper bound for that estimate).
 
@@ -86,7 +86,7 @@ def main() -> None:
             f"factor (at most 1); the nets' varied look spans {lo:g}-{hi:g} times.  MAE over "
             "the predict-the-mean baseline's on the same yarns.  Card read: as shown; estimated: "
             "brought to the scene's card by the photo's own estimate of its level, as `ipm` "
-            "reads every frontlit photo (`Photo.nets_view`); known factor: darkened back "
+            "reads every frontlit photo (`Photo.scene_view`); known factor: darkened back "
             "knowing the factor (`recarded`).\n\n" + "\n".join(rows) + "\n")
     publish(text, args.out, data)
 

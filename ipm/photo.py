@@ -314,12 +314,13 @@ class Photo:
                     f"{self.name}: the yarn runs vertically; turned by 90 degrees")
         return self, None
 
-    def nets_view(self, scale: float = 1.0, min_size: tuple[int, int] | None = None
+    def scene_view(self, scale: float = 1.0, min_size: tuple[int, int] | None = None
                   ) -> np.ndarray:
-        """The image as the nets read it, in training and in use: at ``scale``'s pitch
-        (:meth:`at_pitch`) and, lit from the front, with its card brought to the level of
-        the scene's card (:func:`card_normalised`), so that a yarn on a light card reads as
-        on the card the nets were trained on."""
+        """The image as the scene shows a yarn: at ``scale``'s pitch (:meth:`at_pitch`)
+        and, lit from the front, with its card brought to the level of the scene's card
+        (:func:`card_normalised`).  What the nets read, in training and in use, and what a
+        fit's renders are compared with: a yarn on a light card is read as on the card
+        the nets were trained on and the renders show."""
         img = self.at_pitch(scale, min_size)
         card = setup_of(self.setup).card_linear
         return img if card is None else card_normalised(img, card)

@@ -78,7 +78,7 @@ class Frames:
 
     def _load(self, i: int) -> np.ndarray:
         photo = self.records[i].photo()
-        img = (photo.inverted() if self.invert else photo).nets_view(self.scale, self.min_size)
+        img = (photo.inverted() if self.invert else photo).scene_view(self.scale, self.min_size)
         if self.max_height and img.shape[0] > self.max_height:
             top = (img.shape[0] - self.max_height) // 2
             img = img[top:top + self.max_height]

@@ -46,7 +46,7 @@ class Ensemble:
     info: dict[str, dict]
     folder: Path
     setup: str = DEFAULT_SETUP
-    #: False: the nets read a photo's card as it shows (:meth:`Photo.nets_view` brings it to
+    #: False: the nets read a photo's card as it shows (:meth:`Photo.scene_view` brings it to
     #: the scene's); what benchmarks/card_sweep.py compares with.
     card_normalised: bool = True
 
@@ -180,7 +180,7 @@ class Ensemble:
                 continue
             s = net.config.input_scale
             if s not in scaled:
-                scaled[s] = (photo.nets_view if self.card_normalised else photo.at_pitch)(
+                scaled[s] = (photo.scene_view if self.card_normalised else photo.at_pitch)(
                     s, net.config.crop)
             x = centre_crops(scaled[s], net.config.crop, crops)
             device = next(net.parameters()).device

@@ -137,7 +137,7 @@ def fit(photo: Photo, neural: YarnParams, renderer, config: FitConfig | None = N
     setup = photo.setup
     warnings = [w for w in (exposure_warning(photo.image),) if w]
     scale, frame = search_view(photo, config.scale)
-    small = photo.at_pitch(scale)
+    small = photo.scene_view(scale)
     seen = core_contrast(small) >= MIN_CORE_CONTRAST
     tilt = photo_tilt(small) if seen else 0.0
     learned = config.learned > 0 and readings is not None
@@ -240,7 +240,7 @@ def search_objective(photo: Photo, renderer, config: FitConfig
     evaluation), and the photo at that pitch; for the benchmarks that score what a fit
     sees without searching."""
     scale, frame = search_view(photo, config.scale)
-    small = photo.at_pitch(scale)
+    small = photo.scene_view(scale)
     return RenderObjective(renderer, small, scale, config.spp,
                            seeds_per_eval=config.seeds_per_eval, tilt_deg=photo_tilt(small),
                            frame=frame), small

@@ -95,7 +95,7 @@ class Detail:
         its core across it (:func:`ipm.refine.stats.yarn_centre`), as the renders' window
         is on theirs."""
         frame = Frame(*DETAIL_WINDOW, pitch_mm)
-        image = photo.at_pitch(pixel_size_mm(pitch_mm))  # the scale of that pitch
+        image = photo.scene_view(pixel_size_mm(pitch_mm))  # the scale of that pitch
         h, w = min(frame.height, image.shape[0]), min(frame.width, image.shape[1])
         _, centre = yarn_centre(to_tensor(image).mean(dim=1, keepdim=True))
         top = int(np.clip(round(float(centre[0])) - h // 2, 0, image.shape[0] - h))

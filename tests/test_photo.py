@@ -194,7 +194,7 @@ def test_the_nets_read_any_card_as_the_scenes(card):
     linear[40:60] = yarn
     linear[20:40, ::37] = yarn  # hairs
     photo = Photo(linear_to_srgb(np.clip(linear, 0, 1)).astype(np.float32))
-    seen = srgb_to_linear(photo.nets_view())  # at its own pitch
+    seen = srgb_to_linear(photo.scene_view())  # at its own pitch
     assert np.median(seen[:10]) == pytest.approx(level, rel=0.05)
     assert np.median(seen[45:55], axis=(0, 1)) == pytest.approx(yarn, rel=0.02)
     assert seen[30, 37] == pytest.approx(yarn, rel=0.05)

@@ -28,7 +28,7 @@ from dataclasses import replace
 import numpy as np
 import torch
 
-from ipm.photo import defocus, linear_to_srgb, srgb_to_linear
+from ipm.photo import card_factor, defocus, linear_to_srgb, srgb_to_linear
 from ipm.refine.stats import yarn_centre
 from ipm.render.photometric import LOOK, NOMINAL, Photometric, apply_to_image
 from ipm.setups import setup_of
@@ -117,6 +117,25 @@ def matched_capture(photo_srgb: np.ndarray, render_linear: np.ndarray, pixel_siz
     a card's new albedo, which hardly moves the sharpness of the yarn's edges)."""
     return matched_blur(photo_srgb, render_linear, pixel_size_mm,
                         matched_level(photo_srgb, render_linear, base, setup))
+
+
+#: A card within this many stops of the scene's is rendered as the scene's (a tenth of a
+#: stop is not seen), so that a photo on the scene's own card is fitted as ever.
+CARD_TOLERANCE_STOPS = 0.1
+
+
+def search_card(image_srgb: np.ndarray, setup: str) -> float:
+    """The card's albedo, times the scene's, that a fit renders on to compare with
+    ``image_srgb`` (a photo at the search's pitch): lit from the front, the photo's own card
+    (:func:`ipm.photo.card_factor`), so that a yarn on a light card is compared with renders
+    on that card, the light it throws on the fibers included; 1 for the scene's card
+    (within :data:`CARD_TOLERANCE_STOPS`) and for a light panel."""
+    level = setup_of(setup).card_linear
+    if level is None:
+        return 1.0
+    gain = card_factor(srgb_to_linear(image_srgb), level)
+    ok = np.isfinite(gain) and gain > 0 and abs(np.log2(gain)) > CARD_TOLERANCE_STOPS
+    return float(gain) if ok else 1.0
 
 
 def card_warning(capture: Photometric, setup: str) -> str | None:

@@ -10,7 +10,7 @@ import numpy as np
 from ipm.frame import pixel_size_mm
 from ipm.params import PAPER_INTERVALS, YarnParams
 from ipm.photo import Photo
-from ipm.refine.capture import in_capture, matched_blur, matched_level
+from ipm.refine.capture import CARD_TOLERANCE_STOPS, in_capture, matched_blur, matched_level
 from ipm.refine.measure import search_view
 from ipm.refine.objective import centre_crop
 from ipm.refine.search import LEVEL
@@ -21,9 +21,6 @@ if TYPE_CHECKING:
     from ipm.refine.fit import FitResult
     from ipm.refine.plan import FitConfig
 
-#: A card within this many stops of the photo's is shown as the scene renders it (a tenth
-#: of a stop is not seen).
-CARD_TOLERANCE_STOPS = 0.1
 
 
 def display_renders(renderer, photo: Photo, result: FitResult, config: FitConfig

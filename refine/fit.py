@@ -20,6 +20,7 @@ from scipy.stats import norm
 
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
 from ipm.photo import Photo
+from ipm.refine.capture import search_card
 from ipm.refine.measure import (
     MIN_CORE_CONTRAST,
     choose_ply_count,
@@ -137,9 +138,11 @@ def fit(photo: Photo, neural: YarnParams, renderer, config: FitConfig | None = N
     setup = photo.setup
     warnings = [w for w in (exposure_warning(photo.image),) if w]
     scale, frame = search_view(photo, config.scale)
-    small = photo.scene_view(scale)
-    seen = core_contrast(small) >= MIN_CORE_CONTRAST
-    tilt = photo_tilt(small) if seen else 0.0
+    small = photo.at_pitch(scale)
+    card = search_card(small, setup)
+    view = photo.scene_view(scale)  # the yarn stands out of any card as out of the scene's
+    seen = core_contrast(view) >= MIN_CORE_CONTRAST
+    tilt = photo_tilt(view) if seen else 0.0
     learned = config.learned > 0 and readings is not None
     window = (Detail.of_photo(photo, *detail, weight=config.detail, spp=config.spp)
               if config.detail > 0 and detail is not None and seen else None)
@@ -153,7 +156,8 @@ def fit(photo: Photo, neural: YarnParams, renderer, config: FitConfig | None = N
                                weights=search_weights(p.searched),
                                seeds_per_eval=p.seeds_per_eval, tilt_deg=tilt,
                                readings=readings if learned else None,
-                               readings_weight=config.learned, frame=frame, detail=window)
+                               readings_weight=config.learned, frame=frame, detail=window,
+                               card=card)
 
     count_prior = count_prior or {}
     probability = count_prior.get(neural.n, 0.0) if count_prior else None
@@ -240,10 +244,11 @@ def search_objective(photo: Photo, renderer, config: FitConfig
     evaluation), and the photo at that pitch; for the benchmarks that score what a fit
     sees without searching."""
     scale, frame = search_view(photo, config.scale)
-    small = photo.scene_view(scale)
+    small = photo.at_pitch(scale)
     return RenderObjective(renderer, small, scale, config.spp,
-                           seeds_per_eval=config.seeds_per_eval, tilt_deg=photo_tilt(small),
-                           frame=frame), small
+                           seeds_per_eval=config.seeds_per_eval,
+                           tilt_deg=photo_tilt(photo.scene_view(scale)), frame=frame,
+                           card=search_card(small, photo.setup)), small
 
 
 def _mean_loss(objective: RenderObjective, p: YarnParams, config: FitConfig) -> float:

@@ -95,7 +95,7 @@ class Detail:
         its core across it (:func:`ipm.refine.stats.yarn_centre`), as the renders' window
         is on theirs."""
         frame = Frame(*DETAIL_WINDOW, pitch_mm)
-        image = photo.scene_view(pixel_size_mm(pitch_mm))  # the scale of that pitch
+        image = photo.at_pitch(pixel_size_mm(pitch_mm))  # the scale of that pitch
         h, w = min(frame.height, image.shape[0]), min(frame.width, image.shape[1])
         _, centre = yarn_centre(to_tensor(image).mean(dim=1, keepdim=True))
         top = int(np.clip(round(float(centre[0])) - h // 2, 0, image.shape[0] - h))
@@ -130,14 +130,17 @@ class RenderObjective:
     The statistics of the last :data:`STATS_KEPT` (params, seed) pairs are kept: a fit
     scores its start under several weightings (the ply count's choice, the search's start,
     the whole-loss rule), and the render of one pair is always the same.  A ``frame``
-    renders only the yarn its view shows (:func:`ipm.frame.view_yarn_length`).
+    renders only the yarn its view shows (:func:`ipm.frame.view_yarn_length`).  ``card``: the
+    card's albedo, times the scene's, the renders are made on (the photo's own card,
+    :func:`ipm.refine.capture.search_card`).
     """
 
     def __init__(self, renderer, photo: np.ndarray, scale: float, spp: int,
                  render_seed: int = 0, weights: dict[str, float] | None = None,
                  seeds_per_eval: int = 1, tilt_deg: float = 0.0,
                  readings: Readings | None = None, readings_weight: float = 1.0,
-                 frame: Frame | None = None, detail: Detail | None = None) -> None:
+                 frame: Frame | None = None, detail: Detail | None = None,
+                 card: float = 1.0) -> None:
         from ipm.render.scene import frame_size
 
         w, h = frame_size(scale) if frame is None else (frame.width, frame.height)
@@ -146,7 +149,7 @@ class RenderObjective:
         self.renderer, self.scale, self.spp, self.render_seed = renderer, scale, spp, render_seed
         self.weights = DEFAULT_WEIGHTS if weights is None else weights
         self.seeds_per_eval = seeds_per_eval
-        self.capture = Photometric(rotation_deg=tilt_deg)
+        self.capture = Photometric(rotation_deg=tilt_deg, backdrop_gain=card)
         self.setup = renderer.options.setup
         self.readings = readings
         self.pixel_size_mm = pixel_size_mm(scale) if frame is None else frame.pixel_size_mm

@@ -504,7 +504,7 @@ def test_the_displayed_capture_is_the_photos_exposure_and_defocus(setup):
     card's albedo frontlit (the yarn's brightness is the fibers' colour's to match)."""
     from scipy.ndimage import gaussian_filter
 
-    from ipm.refine.capture import card_warning, matched_capture
+    from ipm.refine.capture import card_warning, matched_capture, search_card
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
 
@@ -538,3 +538,8 @@ def test_the_displayed_capture_is_the_photos_exposure_and_defocus(setup):
         assert "30 times as light" in card_warning(on_light, setup)
         assert card_warning(matched_capture(photo_of(1.0, 0.0), linear, 0.04, setup=setup),
                             setup) is None
+        # the search renders on the photo's card: the light one's, the scene's as it is
+        assert search_card(light, setup) == pytest.approx(30.0, rel=0.1)
+        assert search_card(photo_of(1.0, 0.0), setup) == 1.0
+    else:
+        assert search_card(photo_of(1.5, 0.0), setup) == 1.0  # the panel is the light

@@ -217,20 +217,28 @@ def yarn_layout(gray: np.ndarray) -> tuple[float, float]:
 #: behind (a yarn lit in front is lighter than its dark card; real captures lit from behind
 #: can be dim).
 LIGHT_BORDER = 0.3
+#: A yarn whose pixels differ this much between colour channels (sRGB, the median of the
+#: largest minus the smallest) shows its colour: lit in front, whatever its card (a
+#: silhouette on a light panel is grey).
+COLOURED_YARN = 0.1
 
 
 def detect_setup(image: np.ndarray) -> tuple[str, str]:
     """(setup, why) of an sRGB photo (H, W, 3): the setup lit from behind
-    (:mod:`ipm.setups`) for a dark yarn on a light background (a light panel or a
+    (:mod:`ipm.setups`) for a dark grey yarn on a light background (a light panel or a
     microscope's lamp), else the one lit in front (a light yarn on the dark card of the
-    scene).  The background is the median of the border; the yarn,
-    the pixels that differ from it most."""
+    scene, or a coloured yarn on any card: :data:`COLOURED_YARN`).  The background is the
+    median of the border; the yarn, the pixels that differ from it most."""
     gray = image.mean(axis=2)
     border = np.concatenate([gray[0], gray[-1], gray[:, 0], gray[:, -1]])
     background = float(np.median(border))
     diff = gray - background
     far = np.abs(diff) >= np.quantile(np.abs(diff), 0.9)
     darker = float(np.mean(diff[far])) < 0
+    colour = float(np.median((image.max(axis=2) - image.min(axis=2))[far]))
+    if background >= LIGHT_BORDER and darker and colour >= COLOURED_YARN:
+        return lit(False), (f"a coloured yarn on a light card, level {background:.2f}, "
+                            f"colour {colour:.2f}")
     if background >= LIGHT_BORDER and darker:
         return lit(True), f"a dark yarn on a light background, level {background:.2f}"
     return lit(False), (f"a {'dark' if darker else 'light'} yarn on a "

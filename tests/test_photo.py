@@ -198,3 +198,16 @@ def test_the_nets_read_any_card_as_the_scenes(card):
     assert np.median(seen[:10]) == pytest.approx(level, rel=0.05)
     assert np.median(seen[45:55], axis=(0, 1)) == pytest.approx(yarn, rel=0.02)
     assert seen[30, 37] == pytest.approx(yarn, rel=0.05)
+
+
+def test_a_coloured_yarn_on_a_light_card_is_lit_from_the_front():
+    # a band of fibers on a light background: coloured (a yarn lit in front on a white card)
+    # or grey (a silhouette on a light panel)
+    from ipm.photo import detect_setup
+
+    rng = np.random.default_rng(2)
+    for colour, setup in (((0.6, 0.45, 0.2), "frontlit"), ((0.3, 0.3, 0.3), "backlit")):
+        img = np.full((150, 500, 3), 0.8)
+        band = rng.random((40, 500)) < 0.7  # fibers and the gaps between them
+        img[55:95][band] = colour
+        assert detect_setup(img.astype(np.float32))[0] == setup, colour

@@ -326,9 +326,9 @@ class Photo:
                   ) -> np.ndarray:
         """The image as the scene shows a yarn: at ``scale``'s pitch (:meth:`at_pitch`)
         and, lit from the front, with its card brought to the level of the scene's card
-        (:func:`card_normalised`).  What the nets read, in training and in use, and what a
-        fit's renders are compared with: a yarn on a light card is read as on the card
-        the nets were trained on and the renders show."""
+        (:func:`card_normalised`).  What the nets read, in training and in use: a yarn on
+        a light card is read as on the card they were trained on.  (A fit renders on the
+        photo's own card instead: :func:`ipm.refine.capture.search_card`.)"""
         img = self.at_pitch(scale, min_size)
         card = setup_of(self.setup).card_linear
         return img if card is None else card_normalised(img, card)

@@ -41,7 +41,9 @@ class CaptureSetup:
     such a yarn, and the default search stands).  card_linear: the level (linear grey) of
     the card in the scene's own renders, lamps in front; the nets read a photo with its card
     brought to it (:func:`ipm.photo.card_normalised`), so that they read a yarn on any card
-    as on the one they were trained on (None: the background is the light)."""
+    as on the one they were trained on, and a fit renders on the photo's card, this many
+    times the scene's (:func:`ipm.refine.capture.search_card`) (None: the background is the
+    light)."""
 
     name: str
     summary: str

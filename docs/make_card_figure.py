@@ -12,9 +12,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from PIL import Image
-
 from make_overview import GAP, OUT, labelled
+from PIL import Image
 
 #: The scene's card albedo times 1, 3, 10 and 30 (white).
 CARDS = (0.03, 0.09, 0.3, 0.9)

@@ -329,9 +329,7 @@ class Photo:
         (:func:`card_normalised`).  What the nets read, in training and in use: a yarn on
         a light card is read as on the card they were trained on.  (A fit renders on the
         photo's own card instead: :func:`ipm.refine.capture.search_card`.)"""
-        img = self.at_pitch(scale, min_size)
-        card = setup_of(self.setup).card_linear
-        return img if card is None else card_normalised(img, card)
+        return on_scene_card(self.at_pitch(scale, min_size), self.setup)
 
     def inverted(self) -> Photo:
         """The negative: a capture of a dark yarn on a light background made to look
@@ -393,6 +391,13 @@ def card_normalised(image: np.ndarray, level: float) -> np.ndarray:
     if not np.isfinite(factor) or factor <= 0:
         return image
     return linear_to_srgb(recarded(linear, factor)).astype(image.dtype)
+
+
+def on_scene_card(image: np.ndarray, setup: str) -> np.ndarray:
+    """An sRGB image (H, W, 3) of capture ``setup`` with its card, lit from the front,
+    brought to the scene's (:func:`card_normalised`); a light panel's as it is."""
+    card = setup_of(setup).card_linear
+    return image if card is None else card_normalised(image, card)
 
 
 def linear_to_srgb(x: np.ndarray) -> np.ndarray:

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.stats import norm
 
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
-from ipm.photo import Photo
+from ipm.photo import Photo, on_scene_card
 from ipm.refine.capture import search_card
 from ipm.refine.measure import (
     MIN_CORE_CONTRAST,
@@ -140,7 +140,7 @@ def fit(photo: Photo, neural: YarnParams, renderer, config: FitConfig | None = N
     scale, frame = search_view(photo, config.scale)
     small = photo.at_pitch(scale)
     card = search_card(small, setup)
-    view = photo.scene_view(scale)  # the yarn stands out of any card as out of the scene's
+    view = on_scene_card(small, setup)  # the yarn stands out of any card as out of the scene's
     seen = core_contrast(view) >= MIN_CORE_CONTRAST
     tilt = photo_tilt(view) if seen else 0.0
     learned = config.learned > 0 and readings is not None
@@ -247,7 +247,7 @@ def search_objective(photo: Photo, renderer, config: FitConfig
     small = photo.at_pitch(scale)
     return RenderObjective(renderer, small, scale, config.spp,
                            seeds_per_eval=config.seeds_per_eval,
-                           tilt_deg=photo_tilt(photo.scene_view(scale)), frame=frame,
+                           tilt_deg=photo_tilt(on_scene_card(small, photo.setup)), frame=frame,
                            card=search_card(small, photo.setup)), small
 
 

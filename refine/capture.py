@@ -145,9 +145,11 @@ def card_warning(capture: Photometric, setup: str) -> str | None:
     lo, hi = LOOK["backdrop_gain"]
     if setup_of(setup).light_behind or lo <= capture.backdrop_gain <= hi:
         return None
+    fix = ("a matte card, not a lit or glossy one" if capture.backdrop_gain > hi
+           else "a grey or white matte card, lit as the yarn is")
     return (f"the photo's background is a card {capture.backdrop_gain:.2g} times as light as "
             f"the scene's, outside the {lo:g}-{hi:g} the nets were trained on: they may "
-            "misread the yarn; photograph it over a dark to mid-grey card")
+            f"misread the yarn; photograph it over {fix}")
 
 
 def in_capture(render_linear: np.ndarray, capture: Photometric, pixel_size_mm: float

@@ -137,11 +137,13 @@ def _uniform(rng: np.random.Generator, lo: float, hi: float, log: bool = False) 
 
 NO_VARIATION = PhotometricRanges(0.0, 0.0, (0.0, 0.0), 0.0, 0.0, 0.0)
 #: The ranges of the look's variations (uniform but :data:`LOG_LOOK`'s; JPEG on half of the
-#: images).  The card (lamps in front) from near-black velvet to a mid-grey card (albedo
-#: 0.009-0.3 around the scene's 0.03), since users photograph yarn over either; it was 0.3-3
-#: times the scene's before the nets of that setup were trained on a varied look.
+#: images).  The card (lamps in front) from near-black velvet to white paper (albedo
+#: 0.009-1 around the scene's 0.03), since users photograph yarn over any of them; it was
+#: 0.3-3 times the scene's before the nets lit in front were trained on a varied look, 0.3-10
+#: (up to a mid-grey card) before they read every photo on the scene's card
+#: (:meth:`ipm.photo.Photo.scene_view`; benchmarks/results/card_sweep.md).
 LOOK: dict[str, tuple[float, float]] = {
-    "light_gain": (0.6, 1.6), "backdrop_gain": (0.3, 10.0), "blur_mm": (0.0, 0.04),
+    "light_gain": (0.6, 1.6), "backdrop_gain": (0.3, 33.0), "blur_mm": (0.0, 0.04),
     "vignetting": (0.0, 0.3), "gamma": (0.8, 1.25), "jpeg_quality": (60, 95)}
 LOG_LOOK = frozenset({"backdrop_gain"})
 #: Where the soft boxes in front stand (uniform): both turned about the view direction and

@@ -458,13 +458,13 @@ def test_a_yarn_far_thinner_than_the_nets_read_is_searched_thickness_first():
     benchmarks' net-free yardstick, not the fit's own width measure, on the photo and on the
     two rendered at its pitch); a reading within the gate keeps the default search, and so
     does a frontlit fit, whose core width follows the light."""
-    from ipm.benchmarks.photo_measures import measure_image
     from ipm.photo import Photo
     from ipm.refine.fit import fit
     from ipm.refine.plan import FitConfig
     from ipm.refine.search import parse_stages
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
+    from ipm.textile.image import measure_image
 
     renderer = Renderer(options=setup_options("backlit"))
     truth = preset("golden")
@@ -534,8 +534,10 @@ def test_the_displayed_capture_is_the_photos_exposure_and_defocus(setup):
                                      photometric=Photometric(backdrop_gain=30.0)))
         on_light = matched_capture(light, linear, 0.04, setup=setup)
         assert on_light.backdrop_gain == pytest.approx(30.0, rel=0.07)
-        # lighter than any card the nets saw: said; the scene's own card: not
-        assert "30 times as light" in card_warning(on_light, setup)
+        # a white card is inside what the nets saw; a card darker than any they saw is said
+        assert card_warning(on_light, setup) is None
+        darker = replace(on_light, backdrop_gain=0.1)
+        assert "0.1 times as light" in card_warning(darker, setup)
         assert card_warning(matched_capture(photo_of(1.0, 0.0), linear, 0.04, setup=setup),
                             setup) is None
         # the search renders on the photo's card: the light one's, the scene's as it is

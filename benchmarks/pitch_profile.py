@@ -204,10 +204,10 @@ def main() -> None:
     if not (args.photos and args.pixel_size and args.fits):
         ap.error("give --data, or --photos, --pixel-size and --fits")
 
-    from ipm.benchmarks.photo_measures import gray
     from ipm.benchmarks.real_photos import measures
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
+    from ipm.textile.image import gray
 
     rows = [json.loads(line) for line in args.fits.read_text().splitlines() if line.strip()]
     rows = rows[: args.count]

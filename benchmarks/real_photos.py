@@ -8,7 +8,7 @@ photo and its render are measured alike.
   ``alpha_ply / n``, the distance between neighbouring plies' crossings.
 * Ply count: the fit's ``n`` on the photos whose README calls them 2-ply.
 * Hairiness: fibers per mm of yarn that reach :data:`HAIR_SHOWN` mm beyond the core's edge
-  (:func:`ipm.benchmarks.photo_measures.hairiness`), the render's over the photo's.
+  (:func:`ipm.textile.image.hairiness`), the render's over the photo's.
 
 Writes the summary page (the table and the medians) to ``--out``
 (``benchmarks/results/real_photos.md``), and the heavy outputs to the folder ``--work``,
@@ -37,11 +37,11 @@ import numpy as np
 from PIL import Image
 
 from ipm.benchmarks.machine import markdown_header, publish
-from ipm.benchmarks.photo_measures import gray, hairiness, measure_image
 from ipm.dataset import Record, photo_files
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.photo import write_png
 from ipm.refine.capture import in_capture, matched_capture
+from ipm.textile.image import gray, hairiness, measure_image
 
 #: Where the summary page goes by default (the heavy outputs go to ``--work``).
 PAGE = Path(__file__).parent / "results" / "real_photos.md"

@@ -1,7 +1,7 @@
 """The pixel size of the real backlit photos (../shared/real-yarns), which their source does
 not publish, estimated from the fibers in them: cotton fibers are 12-20 um thick (16 um
 taken), and the flyaways' width in pixels is measured by
-:func:`ipm.benchmarks.photo_measures.fiber_width_px`.  Photos whose flyaways give fewer
+:func:`ipm.textile.image.fiber_width_px`.  Photos whose flyaways give fewer
 than 100 skeleton pixels are left out.  Writes the table and the estimate the other reports
 use.
 
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ipm.benchmarks.machine import markdown_header, publish
-from ipm.benchmarks.photo_measures import (
+from ipm.textile.image import (
     core_diameter_px,
     fiber_width_px,
     gray,

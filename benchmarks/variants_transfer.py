@@ -36,7 +36,6 @@ from pathlib import Path
 import numpy as np
 
 from ipm.benchmarks.machine import markdown_header, publish
-from ipm.benchmarks.photo_measures import gray
 from ipm.benchmarks.real_photos import (
     MEASURE_PITCH_MM,
     measures,
@@ -47,6 +46,7 @@ from ipm.benchmarks.real_photos import (
 from ipm.benchmarks.report import ENSEMBLE, accuracy, baseline_accuracy, load_approaches
 from ipm.dataset import Record, photo_files, read_manifest
 from ipm.params import RAW_CONTINUOUS
+from ipm.textile.image import gray
 
 #: The parameters of issue 21's cross-renderer target, in its order.
 TARGET = ("alpha", "alpha_ply", "R_ply", "r_x", "r_y", "m")

@@ -14,7 +14,9 @@ import typer
 from ipm.errors import UserError
 from ipm.io import check_not_inputs, check_output, write_text
 from ipm.params import YARN_HELP
-from ipm.render.commands import ForceOpt
+from ipm.photo import CALIBRATION_HELP, PIXEL_SIZE_HELP
+from ipm.render.commands import ForceOpt, PhotoSetupOpt
+from ipm.setups import AUTO_SETUP
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   rich_markup_mode=None,
@@ -194,6 +196,93 @@ def calibrate(
                f"{tick_mm:g} mm, scale at {cal.angle_deg:.1f} deg)")
     if out is not None:
         write_text(out, cal.to_json() + "\n")
+
+
+@app.command()
+def measure(
+    photos: Annotated[list[Path], typer.Argument(help="photos of yarns, or folders of them")],
+    out: Annotated[Path | None, typer.Option("-o", "--out", help="folder (created) for "
+                                             "each photo's <name>.json and <name>.png (the "
+                                             "measures drawn over the photo), and for "
+                                             "several photos measures.csv and measures.png")]
+    = None,
+    pixel_size: Annotated[float | None, typer.Option(help=PIXEL_SIZE_HELP)] = None,
+    calibration: Annotated[Path | None, typer.Option(help=CALIBRATION_HELP)] = None,
+    setup: PhotoSetupOpt = AUTO_SETUP,
+    plies: Annotated[int | None, typer.Option(min=1, help="the yarn's ply count, if known: "
+                                              "turns the ply period into turns per metre")]
+    = None,
+    force: ForceOpt = False,
+) -> None:
+    """Measure yarn photos as a textile lab reports them, without the nets: diameter and its
+    CV along the yarn, ply twist (turns per metre with --plies, S or Z), hairiness (Uster's
+    H, Zweigle-type counts per distance) and the hairs' lengths (docs/measure.md).  Every
+    photo that can be read is measured; each that cannot is listed (exit 1)."""
+    from ipm.dataset import photo_files
+    from ipm.io import prepare_folder
+    from ipm.photo import Photo, pixel_size_of
+    from ipm.setups import setup_of
+
+    files = [f for p in photos for f in (photo_files(p) if p.is_dir() else [p])]
+    if not files:
+        raise UserError(f"{', '.join(map(str, photos))} holds no photos")
+    several = len(files) > 1
+    if out is not None:
+        if out.exists() and not out.is_dir():
+            raise UserError(f"--out {out} is a file; give a folder")
+        stems = {}
+        for f in files:
+            if f.stem in stems:
+                raise UserError(f"two photos share a name, {stems[f.stem]} and {f}: their "
+                                f"files would collide in {out}; rename one")
+            stems[f.stem] = f
+        targets = [out / f"{f.stem}{sfx}" for f in files for sfx in (".json", ".png")]
+        sidecars = [f.with_suffix(".json") for f in files]
+        check_not_inputs(targets + [out / "measures.csv", out / "measures.png"],
+                         [*files, *sidecars], force)
+        prepare_folder(out)
+    rows, done, names, failed = [], [], [], []
+    for i, file in enumerate(files):
+        try:
+            size = pixel_size_of(file, pixel_size, calibration)
+            photo, note = Photo.read(file, size).with_setup(setup)
+            photo, turned = photo.upright()
+            photo.check_view()
+            from ipm.textile.image import analyse  # scipy: after the photo's checks
+
+            gray = photo.image.mean(axis=2)
+            m, drawing = analyse(gray, size, setup_of(photo.setup).light_behind, plies)
+        except UserError as e:
+            message = str(e)
+            named = message if message.startswith(str(file)) else f"{file}: {message}"
+            typer.echo(f"error: {named}", err=True)
+            failed.append(file)
+            continue
+        for n in (note, turned):
+            if n and not several:
+                typer.echo(n, err=True)
+        if several:
+            typer.echo(f"[{i + 1}/{len(files)}] {file.name}: diameter {m.diameter_mm:.3f} mm "
+                       f"(CV {m.diameter_cv_pct:.1f}%), H {m.hairiness_h:.3g}, twist "
+                       f"{m.twist_direction or '?'}")
+        else:
+            typer.echo("\n".join(m.summary()))
+        if out is not None:
+            from ipm.textile.report import overlay, row, write_json, write_png
+
+            write_json(out / f"{file.stem}.json", m)
+            write_png(out / f"{file.stem}.png", overlay(gray, m, drawing))
+            rows.append(row(file.name, m))
+            done.append(m)
+            names.append(file.stem)
+    if out is not None and several and done:
+        from ipm.textile.report import write_csv, write_plots
+
+        write_csv(out / "measures.csv", rows)
+        write_plots(out / "measures.png", names, done)
+    if failed:
+        typer.echo(f"{len(failed)} of {len(files)} photos failed", err=True)
+        raise typer.Exit(1)
 
 
 # render/

@@ -33,7 +33,9 @@ Blender script settles a point, we follow it so that a parameter means what it m
   template's ``(x, y, z)``, so a level's twist keeps its sense when the template is carried
   along the next level's helix.  A fiber of pitch ``alpha`` < 0 therefore turns about its ply
   against a ply of pitch ``alpha_ply`` > 0 (the paper: opposite signs, opposite directions,
-  as in plied knitting yarns, S on Z).  The cross-section stays orthogonal to its own centre
+  as in plied knitting yarns, S on Z).  With the ``(sin, cos)`` placement a positive pitch
+  turns left-handed: ``alpha_ply > 0`` plies S, ``alpha < 0`` twists the fibers Z, the
+  common knitting yarn of Z singles plied S.  The cross-section stays orthogonal to its own centre
   line and turns with the helix (Eq. 6), so the squeezed (smaller) radius of the ellipse
   always faces the centre.  ``mapping="global"`` is Zhao et al.'s shift orthogonal to the
   global axis (``e_1`` radial, ``e_2 = e_z x e_1`` in the xy plane), kept for comparison

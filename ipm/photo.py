@@ -273,22 +273,14 @@ class Photo:
                  ) -> np.ndarray:
         """The image resampled to the scene's pixel pitch at ``scale``
         (:func:`to_scene_pitch`).  ``min_size`` = (H, W), the nets' input: a photo that
-        shows less than :data:`MIN_VIEW_MM` raises a one-line :class:`UserError` saying how
-        many photo pixels are needed at this pixel size; one with fewer than H rows is
+        shows too little is refused (:meth:`check_view`); one with fewer than H rows is
         padded above and below with its background (the median of its outer rows), as if
         the camera had seen more of the backdrop (flyaways that reach beyond it are lost);
         one narrower than W stays so (the nets pool along the yarn)."""
         img = to_scene_pitch(self.image, self.pixel_size_mm, scale)
         if min_size is None:
             return img
-        h, w = self.image.shape[:2]
-        seen = (h * self.pixel_size_mm, w * self.pixel_size_mm)
-        if seen[0] < MIN_VIEW_MM[0] or seen[1] < MIN_VIEW_MM[1]:
-            need_w, need_h = (int(np.ceil(v / self.pixel_size_mm)) for v in MIN_VIEW_MM[::-1])
-            raise UserError(f"{self.name} ({w}x{h} px) is too small: at {self.pixel_size_mm:g}"
-                            f" mm per pixel it shows {seen[1]:.3g} x {seen[0]:.3g} mm of yarn; "
-                            f"ipm needs at least {MIN_VIEW_MM[1]:g} x {MIN_VIEW_MM[0]:g} mm "
-                            f"({need_w}x{need_h} px)")
+        self.check_view()
         missing = min_size[0] - img.shape[0]
         if missing > 0:
             edge = max(1, img.shape[0] // 10)
@@ -298,6 +290,18 @@ class Photo:
             img = np.concatenate([np.broadcast_to(background, (above, img.shape[1], 3)), img,
                                   np.broadcast_to(background, (missing - above, img.shape[1], 3))])
         return img
+
+    def check_view(self) -> None:
+        """A one-line :class:`UserError` if the photo shows less than :data:`MIN_VIEW_MM`,
+        saying how many photo pixels are needed at its pixel size."""
+        h, w = self.image.shape[:2]
+        seen = (h * self.pixel_size_mm, w * self.pixel_size_mm)
+        if seen[0] < MIN_VIEW_MM[0] or seen[1] < MIN_VIEW_MM[1]:
+            need_w, need_h = (int(np.ceil(v / self.pixel_size_mm)) for v in MIN_VIEW_MM[::-1])
+            raise UserError(f"{self.name} ({w}x{h} px) is too small: at {self.pixel_size_mm:g}"
+                            f" mm per pixel it shows {seen[1]:.3g} x {seen[0]:.3g} mm of yarn; "
+                            f"ipm needs at least {MIN_VIEW_MM[1]:g} x {MIN_VIEW_MM[0]:g} mm "
+                            f"({need_w}x{need_h} px)")
 
     def with_setup(self, setup: str) -> tuple[Photo, str | None]:
         """The photo read as of capture ``setup``; for ``auto`` the one

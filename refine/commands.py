@@ -141,7 +141,13 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, config, variant,
     from ipm.io import write_text
     from ipm.photo import write_png
     from ipm.refine.capture import card_warning
-    from ipm.refine.display import compare_image, display_renders, summary_lines
+    from ipm.refine.display import (
+        compare_image,
+        display_renders,
+        summary_lines,
+        textile_block,
+        textile_lines,
+    )
     from ipm.refine.fit import fit
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
@@ -192,9 +198,12 @@ def _fit_into(out, shot, pixel_size, refine, knit, models, config, variant,
     shown_in = {"exposure_stops": round(capture.exposure_stops, 3),  # the renders' look,
                 "backdrop_gain": round(capture.backdrop_gain, 3),  # not the yarn's
                 "blur_mm": round(capture.blur_mm, 5)}
+    textile = textile_block(shot, result.refined if refine else result.neural, refined_img
+                            if refine else neural_img, config)
     write_text(out / "params.json", json.dumps({**result.to_dict(pixel_size, shot.setup),
-                                                "capture": shown_in}, indent=2))
-    for line in summary_lines(result):
+                                                "capture": shown_in, "textile": textile},
+                                               indent=2))
+    for line in summary_lines(result) + textile_lines(textile):
         typer.echo(line, err=True)
     typer.echo(f"loss neural {result.loss_neural:.4f} -> refined {result.loss_refined:.4f} "
                f"({result.seconds:.0f} s); wrote {out}/params.json, compare.png", err=True)

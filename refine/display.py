@@ -1,5 +1,6 @@
 """What ``ipm fit`` shows the user: the photo and the renders side by side in the photo's
-capture (:mod:`ipm.refine.capture`), and the fitted yarn in a few lines."""
+capture (:mod:`ipm.refine.capture`), the fitted yarn in a few lines, and its textile
+measures beside the photo's (:mod:`ipm.textile`)."""
 
 from __future__ import annotations
 
@@ -92,3 +93,34 @@ def compare_image(panels: list[np.ndarray], labels: list[str]) -> np.ndarray:
         draw.text((4, top + 3), label, fill=(0, 0, 0))
         top += bar
     return np.asarray(out)
+
+
+def textile_block(photo: Photo, fitted: YarnParams, render: np.ndarray, config: FitConfig
+                  ) -> dict:
+    """``params.json``'s ``textile``: the photo's measures (:mod:`ipm.textile.image`, at its
+    own pitch), the same of the fitted yarn's ``render`` in the photo's capture (at the
+    display's pitch), and those of the fitted yarn's fibers (:mod:`ipm.textile.fibers`);
+    the ply count the fit's."""
+    from ipm.generator import generate
+    from ipm.textile.fibers import fiber_measures
+    from ipm.textile.image import measure_photo
+
+    behind = setup_of(photo.setup).light_behind
+    pitch = pixel_size_mm(search_view(photo, config.display_scale)[0])
+    return {"photo": measure_photo(photo.image.mean(axis=2), photo.pixel_size_mm, behind,
+                                   fitted.n).brief(),
+            "render": measure_photo(render.mean(axis=2), pitch, behind, fitted.n).brief(),
+            "fibers": fiber_measures(fitted, generate(fitted, config.fiber_seed))}
+
+
+def textile_lines(textile: dict) -> list[str]:
+    """The textile block in a few lines: photo | render | fibers."""
+    def row(name: str, key: str, fmt: str) -> str:
+        cells = [textile[k].get(key) for k in ("photo", "render", "fibers")]
+        return f"  {name:<19s} " + " | ".join("-" if v is None else format(v, fmt)
+                                              for v in cells)
+    return ["textile measures (photo | fit's render | fit's fibers; docs/measure.md):",
+            row("diameter (mm)", "diameter_mm", ".3f"),
+            row("ply twist (turns/m)", "ply_twist_tpm", ".0f"),
+            row("direction", "twist_direction", "s"),
+            row("hairiness H", "hairiness_h", ".3g")]

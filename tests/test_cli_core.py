@@ -146,7 +146,7 @@ def test_the_cli_and_its_refusals_stay_light(tmp_path):
     code = ("import sys; from ipm.cli import main; sys.argv = ['ipm', *sys.argv[1:]]\n"
             "try:\n    main()\nexcept SystemExit:\n    pass\n"
             "print(sorted(m for m in ('torch', 'scipy', 'mitsuba') if m in sys.modules))")
-    for args in ((), ("predict", str(tmp_path / "p.png")),
+    for args in ((), ("predict", str(tmp_path / "p.png")), ("measure", str(tmp_path / "p.png")),
                  ("compare", str(tmp_path), "--out", str(tmp_path / "c"))):
         r = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True)
         assert r.stdout.strip().splitlines()[-1] == "[]", (args, r.stdout, r.stderr)

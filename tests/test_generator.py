@@ -25,7 +25,7 @@ def generated(sampled_params):
 
 def test_ply_centre_lines_are_helices_of_R_ply_and_alpha_ply(generated):
     """Eq. 6's ``(sin, cos)`` helix turns clockwise about +z for a positive pitch: the turn
-    rate is ``-2 pi / alpha_ply``."""
+    rate is ``-2 pi / alpha_ply`` (left-handed: the S ply twist of ipm/textile/fibers.py)."""
     for name, p, fs in generated:
         for c in ply_centres(*core_fibers(fs)).values():
             radius, rate = helix_about_z(c)
@@ -275,3 +275,4 @@ def test_ply_export_reads_back_with_plyfile(tmp_path):
     assert np.allclose(np.column_stack([f["radius_x"], f["radius_y"]]), fs.radii)
     # every edge joins two consecutive vertices of one fiber
     assert np.all(np.asarray(v["fiber"])[e["vertex1"]] == np.asarray(v["fiber"])[e["vertex2"]])
+

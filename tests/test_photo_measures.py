@@ -1,9 +1,10 @@
-"""The independent photo yardstick (benchmarks/photo_measures.py) on images built here."""
+"""The net-free photo analysis (ipm/textile/image.py, the yardstick of
+benchmarks/photo_measures.py) on images built here."""
 
 import numpy as np
 import pytest
 
-from ipm.benchmarks.photo_measures import (
+from ipm.textile.image import (
     core_diameter_px,
     fiber_width_px,
     hairiness,

@@ -1,0 +1,126 @@
+"""``ipm measure``'s analysis (:mod:`ipm.textile.image`) on ipm renders whose fibers are
+known, against the truth computed here from the fibers and parameters, not by the analysis:
+
+* diameter: the yarn's envelope ``2 (R_ply + max(r_x, r_y))``;
+* ply twist: ``1000 / |alpha_ply|`` turns per metre (the analysis given the true ply count,
+  as a lab knows its yarn's), and its direction from the fibers: the sense in which the
+  first ply's centre (the mean of its fibers in slices along the axis) turns about the axis
+  as it advances, in the generator's right-handed frame (right-handed: Z);
+* hairiness H: the fibers regenerated from the render's parameters and fiber seed,
+  projected as the camera sees them (the generator's z to the right, its x up), and the
+  length of every segment whose both ends lie beyond the envelope's radius and inside the
+  frame, per mm of the frame's width.
+
+The renders are labelled sets of ``ipm generate`` at the paper's pitch; none was used to
+choose anything in the analysis.
+
+    ipm generate --out D/frontlit --count 40 --seed 52 --split test --scale 1 --spp 16
+    ipm generate --out D/backlit --count 40 --seed 52 --split test --scale 1 --spp 16 \\
+        --setup backlit
+    python -m ipm.benchmarks.textile_truth --data D/frontlit --data D/backlit \\
+        --out benchmarks/results/textile_truth.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from ipm.dataset import read_manifest
+from ipm.frame import FRAME_HEIGHT_MM, FRAME_WIDTH_MM
+from ipm.generator import generate
+from ipm.params import YarnParams
+from ipm.textile.image import gray, measure_photo
+
+
+def envelope_diameter(p: YarnParams) -> float:
+    """The yarn's envelope (mm)."""
+    return 2 * (p.R_ply + max(p.r_x, p.r_y))
+
+
+def true_direction(fs) -> str:
+    """S or Z from the fibers: the first ply's centre turning about the axis."""
+    pts = np.concatenate([fs.fiber(i) for i in np.flatnonzero((fs.kind == 0) & (fs.ply == 0))
+                          ]).astype(np.float64)
+    zs = np.linspace(-3, 3, 61)
+    centres = [pts[np.abs(pts[:, 2] - z) < 0.05, :2].mean(axis=0) for z in zs]
+    angle = np.unwrap([np.arctan2(y, x) for x, y in centres])
+    return "Z" if angle[-1] > angle[0] else "S"  # counter-clockwise seen from +z: right-handed
+
+
+def true_hairiness(fs, p: YarnParams, width_mm: float, height_mm: float) -> float:
+    """H from the fibers: projected length (mm) beyond the envelope's radius, per mm."""
+    pts = fs.points.astype(np.float64)
+    a, b = pts[:-1], pts[1:]
+    same = np.ones(len(pts) - 1, bool)
+    same[fs.offsets[1:-1] - 1] = False  # no segment from one fiber's end to the next's start
+    radius = envelope_diameter(p) / 2
+    inside = ((np.abs(a[:, 2]) < width_mm / 2) & (np.abs(b[:, 2]) < width_mm / 2)
+              & (np.abs(a[:, 0]) < height_mm / 2) & (np.abs(b[:, 0]) < height_mm / 2))
+    beyond = (np.abs(a[:, 0]) > radius) & (np.abs(b[:, 0]) > radius)
+    keep = same & inside & beyond
+    d = b[keep] - a[keep]
+    return float(np.hypot(d[:, 2], d[:, 0]).sum() / width_mm)
+
+
+def evaluate(folder: str, count: int | None = None) -> dict:
+    """Per image the measured over the true diameter, ply twist and H, and whether the
+    direction is right; with the analysis' median time per image."""
+    out = {"diameter": [], "tpm": [], "h": [], "direction": [], "seen": [], "seconds": []}
+    records = read_manifest(folder)[:count]
+    for r in records:
+        p = r.params
+        img = gray(str(r.image))
+        t = time.perf_counter()
+        m = measure_photo(img, r.pixel_size_mm, r.setup == "backlit", plies=p.n)
+        out["seconds"].append(time.perf_counter() - t)
+        fs = generate(p, r.seed)
+        truth_h = true_hairiness(fs, p, img.shape[1] * r.pixel_size_mm,
+                                 img.shape[0] * r.pixel_size_mm)
+        out["diameter"].append(m.diameter_mm / envelope_diameter(p))
+        out["tpm"].append((m.ply_twist_tpm or np.nan) / (1000 / abs(p.alpha_ply)))
+        out["h"].append(m.hairiness_h / truth_h if truth_h > 0 else np.nan)
+        out["seen"].append(m.twist_direction is not None)
+        out["direction"].append(m.twist_direction == true_direction(fs))
+    return {"images": len(records), **{k: np.asarray(v, dtype=float) for k, v in out.items()}}
+
+
+def _mare(ratios: np.ndarray) -> str:
+    """Median absolute relative error of ratios measured / true, in percent (NaN: none)."""
+    finite = ratios[np.isfinite(ratios)]
+    return f"{100 * np.median(np.abs(finite - 1)):.1f}%" if len(finite) else "-"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", action="append", required=True, help="labelled render set(s)")
+    ap.add_argument("--count", type=int, default=None)
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    from ipm.benchmarks.machine import markdown_header, publish
+
+    lines = ["| renders | images | diameter | ply twist (turns/m) | H | direction right | "
+             "direction seen | median time |", "|---|---|---|---|---|---|---|---|"]
+    for folder in args.data:
+        e = evaluate(folder, args.count)
+        lines.append(f"| `{folder}` | {e['images']} | {_mare(e['diameter'])} | "
+                     f"{_mare(e['tpm'])} | {_mare(e['h'])} | "
+                     f"{int(e['direction'].sum())} of {e['images']} | "
+                     f"{int(e['seen'].sum())} of {e['images']} | "
+                     f"{1000 * np.median(e['seconds']):.0f} ms |")
+        print(lines[-1], flush=True)
+    command = "python -m ipm.benchmarks.textile_truth " + " ".join(
+        [f"--data {d}" for d in args.data] + ([f"--count {args.count}"] if args.count else [])
+        + ([f"--out {args.out}"] if args.out else []))
+    note = (f"Median absolute relative error against the truth from the fibers (module notes) "
+            f"on renders at their own pitch ({FRAME_WIDTH_MM:g} x {FRAME_HEIGHT_MM:g} mm "
+            "frames); the ply twist with the true ply count given (`--plies`); direction "
+            "seen: the analysis names one (S or Z).")
+    publish(markdown_header("ipm measure against the fibers' truth", command, "numpy")
+            + "\n" + note + "\n\n" + "\n".join(lines) + "\n", args.out)
+
+
+if __name__ == "__main__":
+    main()

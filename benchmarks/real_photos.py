@@ -9,6 +9,10 @@ photo and its render are measured alike.
 * Ply count: the fit's ``n`` on the photos whose README calls them 2-ply.
 * Hairiness: fibers per mm of yarn that reach :data:`HAIR_SHOWN` mm beyond the core's edge
   (:func:`ipm.textile.image.hairiness`), the render's over the photo's.
+* Textile measures (``ipm measure``, :mod:`ipm.textile`): Uster-type H and the Zweigle-type
+  counts of the photo against its render's and the fitted fibers' (Spearman across the
+  photos, median ratio), the diameter's CV along the yarn and the twist direction read on
+  the photo.
 
 Writes the summary page (the table and the medians) to ``--out``
 (``benchmarks/results/real_photos.md``), and the heavy outputs to the folder ``--work``,
@@ -41,7 +45,7 @@ from ipm.dataset import Record, photo_files
 from ipm.frame import PIXEL_SIZE_MM
 from ipm.photo import write_png
 from ipm.refine.capture import in_capture, matched_capture
-from ipm.textile.image import gray, hairiness, measure_image
+from ipm.textile.image import gray, hairiness, measure_image, measure_photo
 
 #: Where the summary page goes by default (the heavy outputs go to ``--work``).
 PAGE = Path(__file__).parent / "results" / "real_photos.md"
@@ -95,6 +99,41 @@ def resized(image: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.asarray(im.resize(shape[::-1], Image.Resampling.LANCZOS)) / 255.0
 
 
+def textile_summary(table: list[dict]) -> list[str]:
+    """The textile measures (``ipm measure``) of the photos against their fits': Spearman
+    across the photos and the median ratio of the render's and of the fibers' over the
+    photo's, for H and the Zweigle-type counts; the photos' diameter CV and directions."""
+    from scipy.stats import spearmanr
+
+    lines = ["Textile measures (`ipm measure`, docs/measure.md), the photo's against the fit's "
+             "render in the photo's capture (measured alike) and against the fitted fibers':", "",
+             "| measure | Spearman, render | median render / photo | Spearman, fibers | "
+             "median fibers / photo |", "|---|---|---|---|---|"]
+
+    def pick(t, source, key):
+        d = t["textile"][source]
+        v = d["hairs_per_100m"].get(key) if key != "H" else d["hairiness_h"]
+        return float("nan") if v is None else float(v)
+
+    for key, name in (("H", "hairiness H"), ("0.1", "hairs per 100 m at 0.1 mm"),
+                      ("0.2", "hairs per 100 m at 0.2 mm"), ("0.5", "hairs per 100 m at 0.5 mm")):
+        photo = np.array([pick(t, "photo", key) for t in table])
+        cells = []
+        for source in ("render", "fibers"):
+            other = np.array([pick(t, source, key) for t in table])
+            ok = np.isfinite(photo) & np.isfinite(other) & (photo > 0)
+            rho = spearmanr(photo[ok], other[ok]).statistic if ok.sum() > 2 else float("nan")
+            cells += [f"{rho:.2f}", f"{np.median(other[ok] / photo[ok]):.2f}"]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    cv = [t["textile"]["photo"]["diameter_cv_pct"] for t in table]
+    directions = [t["textile"]["photo"]["twist_direction"] or "none" for t in table]
+    lines += ["", f"Diameter CV along the yarn (0.3 mm windows), the photos': median "
+              f"{np.nanmedian(cv):.1f}% (range {np.nanmin(cv):.1f}-{np.nanmax(cv):.1f}%). "
+              "Twist direction read on the photos: " + ", ".join(
+                  f"{d} {directions.count(d)}" for d in ("S", "Z", "none")) + "."]
+    return lines
+
+
 def relative(a: float, b: float) -> float:
     return abs(a - b) / b if b > 0 and np.isfinite(a) and np.isfinite(b) else float("nan")
 
@@ -122,6 +161,7 @@ def main() -> None:
     args = ap.parse_args()
 
     from ipm.errors import UserError
+    from ipm.generator import generate
     from ipm.io import check_same_settings, write_text
     from ipm.nets.ensemble import Ensemble
     from ipm.params import YarnParams
@@ -129,6 +169,7 @@ def main() -> None:
     from ipm.refine.plan import FitConfig
     from ipm.render.renderer import Renderer
     from ipm.render.scene import setup_options
+    from ipm.textile.fibers import fiber_measures
 
     files = photo_files(args.photos)
     records = [Record(f, args.pixel_size, setup="backlit") for f in files]
@@ -177,7 +218,13 @@ def main() -> None:
         fit = row["refined"]
         hairs_photo = hairiness(photo, args.pixel_size)
         hairs_render = hairiness(render, MEASURE_PITCH_MM)
+        refined = YarnParams.from_dict(fit)
+        textile_photo = measure_photo(photo, args.pixel_size, True, refined.n).brief()
+        textile_render = measure_photo(render, MEASURE_PITCH_MM, True, refined.n).brief()
+        textile_fibers = fiber_measures(refined, generate(refined, options.fiber_seed))
         table.append({"photo": f.name, "n_neural": row["neural"]["n"], "n": fit["n"],
+                      "textile": {"photo": textile_photo, "render": textile_render,
+                                  "fibers": textile_fibers},
                       "plies_readme": plies.get(f.name), "core_photo": d_photo,
                       "core_render": d_render, "core_rel": relative(d_render, d_photo),
                       "period_photo": period_photo, "period_fit": fit["alpha_ply"] / fit["n"],
@@ -223,6 +270,7 @@ def main() -> None:
              f"{np.median([c['exposure_stops'] for c in captures.values()]):+.2f} stops from "
              "the scene's.", "",
              f"Photo | refined render, every photo: `{args.work / 'contact_sheet.png'}`.", "",
+             *textile_summary(table), "",
              "| photo | n (nets) | n (fit) | README | core photo (mm) | core render (mm) | "
              "diff | period photo (mm) | alpha_ply / n (mm) | diff | "
              f"hairs/mm at {' / '.join(f'{d:g}' for d in HAIR_SHOWN)} mm, photo | render |",

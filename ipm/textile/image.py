@@ -37,8 +37,9 @@ as its photo is.  Definitions and how they relate to the testers: ``docs/measure
   its coefficient of variation (CV) over the windows.
 * Twist direction: the sign of the ply stripes' slant in the core band: the phase step of
   the ply period's wave along the yarn from just above the axis to just below
-  (:func:`twist_slant`; the surface fibers, which slant against the plies, do not count).  Z (a right-handed helix) slants as the middle stroke of a Z
-  held upright, which along a horizontal yarn runs from upper left to lower right.  In
+  (:func:`twist_slant`; the surface fibers, which slant against the plies, do not count).
+  Z (a right-handed helix) slants as the middle stroke of a Z held upright, which along a
+  horizontal yarn runs from upper left to lower right.  In
   transmitted light a yarn and its mirror image through the image plane cast the same
   shadow, so a pure silhouette shows no direction (strength near 0: ``None``); what a
   backlit photo shows of the direction comes from the surface in focus.
@@ -252,8 +253,7 @@ S3_DISTANCE_MM = 3.0
 REACH = 1.5
 #: The harmonics of the ply period among which the twist's slant takes the strongest.
 HARMONICS = (1, 2, 3)
-#: A slant strength (the structure tensor's signed coherence in the core band) below this
-#: tells no twist direction.
+#: A slant (:func:`twist_slant`) weaker than this tells no twist direction.
 MIN_SLANT = 0.05
 #: Pixels (at the hair pitch) by which the yarn's body is grown before hairs are counted.
 BODY_MARGIN_PX = 2
@@ -263,10 +263,9 @@ MM_PER_100M = 1e5
 
 def diameter_profile_px(sig: np.ndarray, window_px: int, diameter_px: float) -> np.ndarray:
     """The core diameter (px) of every whole ``window_px`` columns of a levelled signal,
-    along the yarn: between the outermost crossings, within a whole-frame diameter
-    ``diameter_px`` of the core's edges, of half the whole frame's core signal by the
-    window's median row profile (a window's dips between plies are inside the yarn), within
-    :data:`REACH` times the whole frame's ``diameter_px``."""
+    along the yarn: between the outermost crossings of half the whole frame's core signal
+    by the window's median row profile (a window's dips between plies are inside the yarn),
+    sought within :data:`REACH` times the whole frame's ``diameter_px`` of the axis."""
     h, w = sig.shape
     window_px = max(1, min(window_px, w))
     level = np.median(sig, axis=1).max() / 2
@@ -293,8 +292,9 @@ def twist_slant(sig: np.ndarray, diameter_px: float, period_px: float) -> float:
     the core each): a stripe slanting as Z lies further right below, so the lower sum's
     phase lags; the slant is minus the sine of the phase step, times how well the rows of
     each half agree.  Of the period and its :data:`HARMONICS` (a period read as a multiple
-    of the plies' when they differ), the strongest wave.  Only the plies' period counts: the surface fibers, which slant
-    against the plies, and the core's straight edges do not."""
+    of the plies' when they differ), the strongest wave.  Only the plies' period counts:
+    the surface fibers, which slant against the plies, and the core's straight edges do
+    not."""
     if not (np.isfinite(period_px) and period_px > 2):
         return 0.0
     h, w = sig.shape

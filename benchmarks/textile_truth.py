@@ -24,7 +24,9 @@ choose anything in the analysis.
 from __future__ import annotations
 
 import argparse
+import json
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -103,7 +105,11 @@ def main() -> None:
 
     lines = ["| renders | images | diameter | ply twist (turns/m) | H | direction right | "
              "direction seen | median time |", "|---|---|---|---|---|---|---|---|"]
+    made = []
     for folder in args.data:
+        d = json.loads((Path(folder) / "dataset.json").read_text())
+        made.append(f"`{folder}`: seed {d['seed']}, split {d['split']}, scale {d['scale']:g}, "
+                    f"{d['spp']} spp, setup {d.get('scene', {}).get('setup', 'frontlit')}")
         e = evaluate(folder, args.count)
         lines.append(f"| `{folder}` | {e['images']} | {_mare(e['diameter'])} | "
                      f"{_mare(e['tpm'])} | {_mare(e['h'])} | "
@@ -117,7 +123,8 @@ def main() -> None:
     note = (f"Median absolute relative error against the truth from the fibers (module notes) "
             f"on renders at their own pitch ({FRAME_WIDTH_MM:g} x {FRAME_HEIGHT_MM:g} mm "
             "frames); the ply twist with the true ply count given (`--plies`); direction "
-            "seen: the analysis names one (S or Z).")
+            "seen: the analysis names one (S or Z).  The sets (`ipm generate`): "
+            + "; ".join(made) + ".")
     publish(markdown_header("ipm measure against the fibers' truth", command, "numpy")
             + "\n" + note + "\n\n" + "\n".join(lines) + "\n", args.out)
 

@@ -38,6 +38,9 @@ from ipm.presets import PRESET_NAMES, preset
 R_FRAC = {2: (0.67, 0.9), 3: (0.72, 0.91)}
 R_FRAC_MANY = (0.85, 0.95)
 J_Z_RANGE = (0.0, 0.02)
+#: The helix angles of the fibers and of the plies, from the cross-section's plane: every
+#: kind of yarn's (the search bounds the ply pitch by it too, :mod:`ipm.refine.search`).
+GAMMA_DEG = (50.0, 80.0)
 
 
 @dataclass(frozen=True)
@@ -54,7 +57,7 @@ class YarnRanges:
     m: tuple[int, int] = (40, 200)
     area_frac_ply: tuple[float, float] = (0.035, 0.215)
     area_frac_yarn: tuple[float, float] = (0.55, 0.82)
-    gamma_deg: tuple[float, float] = (50.0, 80.0)
+    gamma_deg: tuple[float, float] = GAMMA_DEG
     diameter_mm: tuple[float, float] | None = None
 
 

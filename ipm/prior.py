@@ -63,7 +63,7 @@ class YarnRanges:
 
 #: The kinds of yarn the sampler draws (``ipm generate --yarns``).  knitting: the paper's
 #: sampler, its fluffy knitting yarns (0.6-4 mm).  fine: spun yarns as a microscope or a
-#: hairiness tester sees them (an ipm extension for the real backlit photos, issue 51):
+#: hairiness tester sees them (an ipm extension for real microscope photos, issue 51):
 #: envelope 0.15-0.6 mm, fibers 12-20 um thick and round (cotton), packed densely in 2-4
 #: plies (20-200 fibers each), so that a core is dark in transmitted light as real cores
 #: are.

@@ -241,6 +241,9 @@ def generate(
                                             "'auto' joins a running cluster, 'local' starts "
                                             "one, or host:port (pip install -e '.[ray]')")]
     = None,
+    yarns: Annotated[str, typer.Option(help="the kind of yarns drawn: knitting (the paper's "
+                                       "sampler) or fine (spun yarns 0.15-0.6 mm thick, as "
+                                       "a microscope sees them)")] = "knitting",
 ) -> None:
     """Make the synthetic dataset: guided-prior yarns rendered in THE scene of one capture
     setup, with ``manifest.jsonl`` (one JSON object per sample) and ``images/``."""
@@ -265,7 +268,7 @@ def generate(
                            photometric=(PhotometricRanges(look=vary_look, material=vary_material)
                                         if photometric
                                         else NO_VARIATION),
-                           scene=setup_options(setup, card), view=view)
+                           scene=setup_options(setup, card), view=view, yarns=yarns)
     with progress_bar("{task.fields[rate]}") as bar:
         task = bar.add_task(f"{split} -> {out}", total=count, rate="")
         start: list[tuple[float, int]] = []

@@ -94,8 +94,10 @@ class GenerateOptions:
     photometric: PhotometricRanges = field(default_factory=PhotometricRanges)
     scene: SceneOptions = DEFAULT_OPTIONS
     view: tuple[int, int] | None = None
+    yarns: str = "knitting"
 
     def __post_init__(self) -> None:
+        GuidedPrior(yarns=self.yarns)  # a one-line error for an unknown kind
         if self.count < 1:
             raise UserError(f"count must be >= 1, got {self.count}")
         if self.spp < 1:
@@ -129,6 +131,8 @@ class GenerateOptions:
             del d["spp_max"]
         if self.view is None:  # as recorded before detail views existed
             del d["view"]
+        if self.yarns == "knitting":  # as recorded before other kinds of yarn existed
+            del d["yarns"]
         for group, implicit in _ADDED_LATER.items():
             for k, v in implicit.items():
                 if d[group].get(k) == v:
@@ -175,7 +179,8 @@ def sample_plan(opts: GenerateOptions, index: int) -> SamplePlan:
     if opts.spp_max is not None:
         u = s.spp_rng.uniform(np.log(opts.spp), np.log(opts.spp_max + 1))
         spp = min(int(np.exp(u)), opts.spp_max)
-    return SamplePlan(GuidedPrior().sample(s.params_rng), s.fiber_seed, s.render_seed,
+    params = GuidedPrior(yarns=opts.yarns).sample(s.params_rng)
+    return SamplePlan(params, s.fiber_seed, s.render_seed,
                       opts.photometric.draw(s.photometric_rng), spp)
 
 

@@ -34,6 +34,12 @@
 # 24 epochs (make-g, replacing make-c's 12-epoch net; the model card has both nets'
 # validation error).  The shipped backlit nets were made with DETAIL=0.
 #
+# FINE=1 (the default for backlit) adds nets for fine spun yarns (0.15-0.6 mm) at a
+# microscope's pitch, read from photos of 0.0125 mm per pixel or finer (the real backlit
+# photos): the whole ensemble again on windows of the fine sampler at 0.01 mm per pixel,
+# suffix -fine (below).  MAIN=0 leaves out the datasets and nets at 0.04 mm and adds to the
+# nets already in OUT: the recipe in stages, one a session (MAIN=1 FINE=0, then MAIN=0).
+#
 # RAW=1 (the default) adds one multi-task net of every raw-yarn parameter (the paper's
 # `reg`, make-r); the ensemble takes each parameter from whichever net has the lower
 # validation error on it (`Ensemble.deciders`).
@@ -48,7 +54,8 @@ set -euo pipefail
 DATA="${1:-data}"; RUNS="${2:-runs}"; OUT="${3:-nets/models}"; SETUP="${SETUP:-frontlit}"
 if [ "$SETUP" = frontlit ]; then DETAIL="${DETAIL:-1}"; else DETAIL="${DETAIL:-0}"; fi
 if [ "$SETUP" = frontlit ]; then TUNE="${TUNE:-1}"; else TUNE="${TUNE:-0}"; fi
-RAW="${RAW:-1}"
+RAW="${RAW:-1}"; MAIN="${MAIN:-1}"
+if [ "$SETUP" = backlit ]; then FINE="${FINE:-1}"; else FINE="${FINE:-0}"; fi
 mkdir -p "$DATA" "$RUNS"
 varied=(--setup "$SETUP" --vary-look --vary-material)
 if [ "$SETUP" = frontlit ]; then
@@ -56,47 +63,49 @@ if [ "$SETUP" = frontlit ]; then
 else
   look=("${varied[@]}"); augment=(--setup "$SETUP" --look)
 fi
-ipm generate --out "$DATA/train" --count 2000 --seed 0 --spp 4-24 "${look[@]}"
-ipm generate --out "$DATA/val" --count 200 --seed 1 --split val --spp 4-24 "${look[@]}"
-ipm generate --out "$DATA/test" --count 200 --seed 20261122 --split test "${look[@]}"
-detail_runs=()
-if [ "$DETAIL" = 1 ]; then
-  # windows at 0.01 mm of the training yarns and more, and of the validation yarns; the test
-  # yarns as whole frames at 0.01 mm (the paper's pitch), where the ensemble uses the detail
-  # nets
-  view=(--scale 1 --view 320 320 --spp 4-24 "${look[@]}")
-  ipm generate --out "$DATA-detail/train" --count 4000 --seed 0 "${view[@]}"
-  ipm generate --out "$DATA-detail/val" --count 200 --seed 1 --split val "${view[@]}"
-  ipm generate --out "$DATA/test-full" --count 200 --seed 20261122 --split test --scale 1 \
-    "${look[@]}"
-  detail_runs=("$RUNS/make-e=-detail" "$RUNS/make-f=-detail" "$RUNS/make-g")
+if [ "$MAIN" = 1 ]; then
+  ipm generate --out "$DATA/train" --count 2000 --seed 0 --spp 4-24 "${look[@]}"
+  ipm generate --out "$DATA/val" --count 200 --seed 1 --split val --spp 4-24 "${look[@]}"
+  ipm generate --out "$DATA/test" --count 200 --seed 20261122 --split test "${look[@]}"
+  detail_runs=()
+  if [ "$DETAIL" = 1 ]; then
+    # windows at 0.01 mm of the training yarns and more, and of the validation yarns; the test
+    # yarns as whole frames at 0.01 mm (the paper's pitch), where the ensemble uses the detail
+    # nets
+    view=(--scale 1 --view 320 320 --spp 4-24 "${look[@]}")
+    ipm generate --out "$DATA-detail/train" --count 4000 --seed 0 "${view[@]}"
+    ipm generate --out "$DATA-detail/val" --count 200 --seed 1 --split val "${view[@]}"
+    ipm generate --out "$DATA/test-full" --count 200 --seed 20261122 --split test --scale 1 \
+      "${look[@]}"
+    detail_runs=("$RUNS/make-e=-detail" "$RUNS/make-f=-detail" "$RUNS/make-g")
+  fi
+  recipe=(--data "$DATA/train" --val "$DATA/val" --blur 1.5 --seed 0 --lr 1e-3 "${augment[@]}")
+  common=(--preset ensemble "${recipe[@]}")
+  train() { OMP_NUM_THREADS=1 ipm train "${common[@]}" "$@"; }
+  (train --nets alpha,m --epochs 18 --out "$RUNS/make-a" &&
+   train --nets n,thickness --epochs 12 --out "$RUNS/make-b") & first=$!
+  (train --nets alpha_ply,R_ply,r_x,r_y --epochs 12 --out "$RUNS/make-c" &&
+   train --nets flyaways --epochs 8 --out "$RUNS/make-d" &&
+   if [ "$RAW" = 1 ]; then
+     OMP_NUM_THREADS=1 ipm train --preset reg --nets raw --epochs 12 "${recipe[@]}" \
+       --out "$RUNS/make-r"
+   fi) & second=$!
+  wait "$first"; wait "$second"  # a failed training fails the script
+  if [ "$DETAIL" = 1 ]; then
+    detail=(--preset ensemble --data "$DATA-detail/train" --val "$DATA-detail/val" --blur 1.5
+            --seed 0 --lr 1e-3 --input-scale 1 --crop 256 256 "${augment[@]}")
+    (OMP_NUM_THREADS=1 ipm train "${detail[@]}" --nets alpha --epochs 16 --out "$RUNS/make-e" &&
+     train --nets alpha_ply --epochs 24 --out "$RUNS/make-g") & first=$!
+    (OMP_NUM_THREADS=1 ipm train "${detail[@]}" --nets m --epochs 28 --out "$RUNS/make-f") &
+    second=$!
+    wait "$first"; wait "$second"
+  fi
+  # the ensemble: each net from the last run that trained it
+  raw_runs=()
+  if [ "$RAW" = 1 ]; then raw_runs=("$RUNS/make-r"); fi
+  python3 "$(dirname "$0")/gather_nets.py" "$OUT" "$RUNS/make-a" "$RUNS/make-b" "$RUNS/make-c" \
+    "$RUNS/make-d" "${raw_runs[@]}" "${detail_runs[@]}"
 fi
-recipe=(--data "$DATA/train" --val "$DATA/val" --blur 1.5 --seed 0 --lr 1e-3 "${augment[@]}")
-common=(--preset ensemble "${recipe[@]}")
-train() { OMP_NUM_THREADS=1 ipm train "${common[@]}" "$@"; }
-(train --nets alpha,m --epochs 18 --out "$RUNS/make-a" &&
- train --nets n,thickness --epochs 12 --out "$RUNS/make-b") & first=$!
-(train --nets alpha_ply,R_ply,r_x,r_y --epochs 12 --out "$RUNS/make-c" &&
- train --nets flyaways --epochs 8 --out "$RUNS/make-d" &&
- if [ "$RAW" = 1 ]; then
-   OMP_NUM_THREADS=1 ipm train --preset reg --nets raw --epochs 12 "${recipe[@]}" \
-     --out "$RUNS/make-r"
- fi) & second=$!
-wait "$first"; wait "$second"  # a failed training fails the script
-if [ "$DETAIL" = 1 ]; then
-  detail=(--preset ensemble --data "$DATA-detail/train" --val "$DATA-detail/val" --blur 1.5
-          --seed 0 --lr 1e-3 --input-scale 1 --crop 256 256 "${augment[@]}")
-  (OMP_NUM_THREADS=1 ipm train "${detail[@]}" --nets alpha --epochs 16 --out "$RUNS/make-e" &&
-   train --nets alpha_ply --epochs 24 --out "$RUNS/make-g") & first=$!
-  (OMP_NUM_THREADS=1 ipm train "${detail[@]}" --nets m --epochs 28 --out "$RUNS/make-f") &
-  second=$!
-  wait "$first"; wait "$second"
-fi
-# the ensemble: each net from the last run that trained it
-raw_runs=()
-if [ "$RAW" = 1 ]; then raw_runs=("$RUNS/make-r"); fi
-python3 "$(dirname "$0")/gather_nets.py" "$OUT" "$RUNS/make-a" "$RUNS/make-b" "$RUNS/make-c" \
-  "$RUNS/make-d" "${raw_runs[@]}" "${detail_runs[@]}"
 if [ "$TUNE" = 1 ]; then
   ipm generate --out "$DATA-look/train" --count 2000 --seed 0 --spp 4-24 "${varied[@]}"
   ipm generate --out "$DATA-look/val" --count 200 --seed 1 --split val --spp 4-24 "${varied[@]}"
@@ -130,4 +139,28 @@ if [ "$TUNE" = 1 ]; then
     tune_runs+=("$RUNS/tune-e=-detail" "$RUNS/tune-f=-detail")
   fi
   python3 "$(dirname "$0")/gather_nets.py" "$OUT" "$OUT" "${tune_runs[@]}"
+fi
+if [ "$FINE" = 1 ]; then
+  # fine spun yarns as a microscope sees them: 3.2 x 3.2 mm windows at 0.01 mm per pixel of
+  # yarns of the fine sampler (`ipm generate --yarns fine`), every net of the ensemble and
+  # the raw net trained on random 256 x 256 crops, gathered beside the 0.04 mm nets with the
+  # suffix -fine: the ensemble reads photos of 0.0125 mm per pixel or finer with them
+  fine=(--scale 1 --view 320 320 --spp 4-24 --yarns fine "${look[@]}")
+  ipm generate --out "$DATA-fine/train" --count 2000 --seed 0 "${fine[@]}"
+  ipm generate --out "$DATA-fine/val" --count 200 --seed 1 --split val "${fine[@]}"
+  ipm generate --out "$DATA-fine/test" --count 200 --seed 20261122 --split test "${fine[@]}"
+  fine_recipe=(--data "$DATA-fine/train" --val "$DATA-fine/val" --blur 1.5 --seed 0 --lr 1e-3
+               --input-scale 1 --crop 256 256 "${augment[@]}")
+  ftrain() { OMP_NUM_THREADS=1 ipm train --preset ensemble "${fine_recipe[@]}" "$@"; }
+  (ftrain --nets n,thickness,alpha,m --epochs 12 --out "$RUNS/fine-a" &&
+   ftrain --nets flyaways --epochs 8 --out "$RUNS/fine-c") & first=$!
+  (ftrain --nets alpha_ply,R_ply,r_x,r_y --epochs 12 --out "$RUNS/fine-b" &&
+   if [ "$RAW" = 1 ]; then
+     OMP_NUM_THREADS=1 ipm train --preset reg --nets raw --epochs 12 "${fine_recipe[@]}" \
+       --out "$RUNS/fine-r"
+   fi) & second=$!
+  wait "$first"; wait "$second"
+  fine_runs=("$RUNS/fine-a=-fine" "$RUNS/fine-b=-fine" "$RUNS/fine-c=-fine")
+  if [ "$RAW" = 1 ]; then fine_runs+=("$RUNS/fine-r=-fine"); fi
+  python3 "$(dirname "$0")/gather_nets.py" "$OUT" "$OUT" "${fine_runs[@]}"
 fi

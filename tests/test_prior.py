@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 
 from ipm.params import PAPER_INTERVALS
 from ipm.prior import GuidedPrior
@@ -46,3 +47,26 @@ def test_flyaways_drawn_in_the_real_yarns_ranges_unless_asked_for_the_paper_inte
     # the paper's whole intervals reach the 35 mm loops and 14 mm hairs the box leaves out
     assert max(p.l_loop for p in paper) > 25 and max(p.l_hair for p in paper) > 10
     assert max(p.l_loop for p in real) < 17 and max(p.l_hair for p in real) < 6.3
+
+
+def test_fine_yarns_are_thin_dense_spun_yarns_inside_the_intervals():
+    """``yarns="fine"``: every draw inside the paper's intervals, its envelope 0.15-0.6 mm,
+    2-4 plies, denser than the knitting yarns (fibers' area in a ply); the paper's sampler
+    is the default and unknown kinds are one line."""
+    from ipm.errors import UserError
+
+    fine = GuidedPrior(yarns="fine").sample_many(200, seed=5)
+    knitting = GuidedPrior().sample_many(200, seed=5)
+    for p in fine:
+        for k, iv in PAPER_INTERVALS.items():
+            assert iv.lo <= getattr(p, k) <= iv.hi, k
+        assert 0.15 <= 2 * (p.R_ply + max(p.r_x, p.r_y)) <= 0.6
+        assert 2 <= p.n <= 4
+
+    def density(p):
+        return p.m * np.pi * p.t_x * p.t_y / (np.pi * p.r_x * p.r_y)
+
+    assert np.median([density(p) for p in fine]) > 2 * np.median([density(p) for p in knitting])
+    assert GuidedPrior(yarns="knitting").sample_many(5, 1) == GuidedPrior().sample_many(5, 1)
+    with pytest.raises(UserError, match="unknown kind of yarns 'wool'"):
+        GuidedPrior(yarns="wool")

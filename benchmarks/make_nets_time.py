@@ -37,8 +37,8 @@ COMMAND = "python -m ipm.benchmarks.make_nets_time --out benchmarks/results/make
 @dataclass(frozen=True)
 class Data:
     """A kind of dataset: ``ipm generate`` options, and how many images of it each setup's
-    recipe renders (train and val sets together; the test sets, at the default spp, are
-    kinds of their own)."""
+    recipe renders (train and val sets together; a test set rendered otherwise, at the
+    default spp, is a kind of its own)."""
 
     options: tuple[str, ...]
     images: dict[str, int]
@@ -62,6 +62,9 @@ class Training:
 
 DETAIL_TRAIN = ("--input-scale", "1", "--crop", "256", "256")
 BACKLIT_TRAIN = ("--setup", "backlit", "--look")
+FINE_WINDOW = ("--scale", "1", "--view", "320", "320", "--spp", "4-24", "--yarns", "fine",
+               "--setup", "backlit", "--vary-look", "--vary-material")
+FINE = "fine window, varied look"
 #: scripts/make_nets.sh, as numbers (tests/test_bench.py checks them against the script).
 RECIPE_DATA = {
     "frame": Data(("--spp", "4-24"), {"frontlit": 2000 + 200}),
@@ -80,10 +83,12 @@ RECIPE_DATA = {
                                         "--spp", "4-24"), {"backlit": 2000 + 200}),
     "backlit test frame, varied look": Data(("--setup", "backlit", "--vary-look",
                                              "--vary-material"), {"backlit": 200}),
+    "fine window, varied look": Data(FINE_WINDOW, {"backlit": 2000 + 200 + 200}),
 }
 #: The training images of each dataset kind.
 TRAIN_IMAGES = {"frame": 2000, "detail window": 4000, "frontlit frame, varied look": 2000,
-                "detail window, varied look": 2000, "backlit frame, varied look": 2000}
+                "detail window, varied look": 2000, "backlit frame, varied look": 2000,
+                FINE: 2000}
 TUNED = "frontlit frame, varied look"
 RECIPE = {
     "frontlit": (
@@ -109,6 +114,12 @@ RECIPE = {
                  BACKLIT_TRAIN),
         Training(("flyaways",), 8, "backlit frame, varied look", 2, BACKLIT_TRAIN),
         Training(("raw",), 12, "backlit frame, varied look", 2, BACKLIT_TRAIN, preset="reg"),
+        Training(("n", "thickness", "alpha", "m"), 12, FINE, 1, DETAIL_TRAIN + BACKLIT_TRAIN,
+                 phase=2),
+        Training(("flyaways",), 8, FINE, 1, DETAIL_TRAIN + BACKLIT_TRAIN, phase=2),
+        Training(("alpha_ply", "R_ply", "r_x", "r_y"), 12, FINE, 2,
+                 DETAIL_TRAIN + BACKLIT_TRAIN, phase=2),
+        Training(("raw",), 12, FINE, 2, DETAIL_TRAIN + BACKLIT_TRAIN, phase=2, preset="reg"),
     ),
 }
 

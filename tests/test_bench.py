@@ -175,23 +175,34 @@ def test_make_nets_time_recipe_is_the_scripts():
     counts = [int(c) for c in re.findall(r"ipm generate .*?--count (\d+)", script)]
     frontlit = sum(d.images.get("frontlit", 0) for d in RECIPE_DATA.values())
     backlit = sum(d.images.get("backlit", 0) for d in RECIPE_DATA.values())
-    assert frontlit == sum(counts) and backlit == sum(counts[:3])
+    fine = counts[-3:]  # the fine yarns' windows, backlit only, last in the script
+    assert frontlit == sum(counts[:-3]) and backlit == sum(counts[:3]) + sum(fine)
     assert TRAIN_IMAGES == {"frame": counts[0], "detail window": counts[3],
                             "frontlit frame, varied look": counts[6],
                             "detail window, varied look": counts[9],
-                            "backlit frame, varied look": counts[0]}
+                            "backlit frame, varied look": counts[0],
+                            "fine window, varied look": fine[0]}
+    fine_block = script[script.index('if [ "$FINE" = 1 ]'):]
+    fine_options = re.search(r"fine=\(([^)]*)\)", fine_block).group(1).split()
+    assert set(fine_options) - {'"${look[@]}"'} <= set(RECIPE_DATA["fine window, varied "
+                                                                  "look"].options)
     varied = re.search(r'varied=\(--setup "\$SETUP" ([^)]*)\)', script).group(1).split()
     for kind in ("backlit frame, varied look", "backlit test frame, varied look",
                  "frontlit frame, varied look", "frontlit test frame, varied look",
                  "detail window, varied look"):
         assert set(varied) <= set(RECIPE_DATA[kind].options), kind
-    trained = {(tuple(n.split(",")), int(e)) for n, e in
-               re.findall(r"--nets (\S+) --epochs (\d+)", script)}
-    assert {(t.nets, t.epochs) for t in RECIPE["frontlit"]} == trained
-    assert {(t.nets, t.epochs) for t in RECIPE["backlit"]} == {
+    def trained_in(text):
+        return {(tuple(n.split(",")), int(e)) for n, e in
+                re.findall(r"--nets (\S+) --epochs (\d+)", text)}
+
+    assert {(t.nets, t.epochs) for t in RECIPE["frontlit"]} == trained_in(
+        script[:script.index('if [ "$FINE" = 1 ]')])
+    assert {(t.nets, t.epochs) for t in RECIPE["backlit"] if t.phase == 2} == trained_in(
+        fine_block)
+    assert {(t.nets, t.epochs) for t in RECIPE["backlit"] if t.phase == 1} == {
         (t.nets, t.epochs) for t in RECIPE["frontlit"] if t.data == "frame"} - {
         (("alpha_ply",), 24)}
-    assert [t.preset for t in RECIPE["backlit"] if t.nets == ("raw",)] == ["reg"]
+    assert [t.preset for t in RECIPE["backlit"] if t.nets == ("raw",)] == ["reg", "reg"]
     assert [t.preset for t in RECIPE["frontlit"] if t.nets == ("raw",)] == ["reg", "reg"]
     assert "--preset reg --nets raw --epochs 12" in script
     assert "--preset reg --nets raw --epochs 6" in script

@@ -20,7 +20,7 @@ PIXEL_SIZE_MM, PLIES, WIDTH = 0.0021, 2, 960
 def main() -> None:
     img = gray(str(PHOTO))
     m, drawing = analyse(img, PIXEL_SIZE_MM, backlit=True, plies=PLIES)
-    drawn = overlay(img, m, drawing)
+    drawn = Image.fromarray(overlay(img, m, drawing))
     height = round(drawn.height * WIDTH / drawn.width)
     out = Path(__file__).parent / "figures" / "measure_real.png"
     drawn.resize((WIDTH, height), Image.Resampling.LANCZOS).save(out, optimize=True)

@@ -241,7 +241,7 @@ def measure(
         check_not_inputs(targets + [out / "measures.csv", out / "measures.png"],
                          [*files, *sidecars], force)
         prepare_folder(out)
-    rows, done, names, failed = [], [], [], []
+    done, failed = [], []
     for i, file in enumerate(files):
         try:
             size = pixel_size_of(file, pixel_size, calibration)
@@ -268,18 +268,17 @@ def measure(
         else:
             typer.echo("\n".join(m.summary()))
         if out is not None:
-            from ipm.textile.report import overlay, row, write_json, write_png
+            from ipm.photo import write_png
+            from ipm.textile.report import overlay, write_json
 
             write_json(out / f"{file.stem}.json", m)
             write_png(out / f"{file.stem}.png", overlay(gray, m, drawing))
-            rows.append(row(file.name, m))
-            done.append(m)
-            names.append(file.stem)
+            done.append((file, m))
     if out is not None and several and done:
-        from ipm.textile.report import write_csv, write_plots
+        from ipm.textile.report import row, write_csv, write_plots
 
-        write_csv(out / "measures.csv", rows)
-        write_plots(out / "measures.png", names, done)
+        write_csv(out / "measures.csv", [row(f.name, m) for f, m in done])
+        write_plots(out / "measures.png", [f.stem for f, _ in done], [m for _, m in done])
     if failed:
         typer.echo(f"{len(failed)} of {len(files)} photos failed", err=True)
         raise typer.Exit(1)

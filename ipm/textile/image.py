@@ -193,13 +193,15 @@ def at_pitch(img: np.ndarray, pixel_size_mm: float, pitch_mm: float) -> np.ndarr
 
 
 def hair_signal(img: np.ndarray, pixel_size_mm: float, backlit: bool
-                ) -> tuple[np.ndarray, float, float]:
+                ) -> tuple[np.ndarray, float, float, tuple[float, float]]:
     """(the levelled signal at :data:`HAIR_PITCH_MM` or coarser, blurred by one of its
-    pixels; that pitch (mm); the core's radius there (px)) of a grey image (H, W) at
-    ``pixel_size_mm``: what the hairiness measures read (module notes)."""
-    img = at_pitch(img, pixel_size_mm, HAIR_PITCH_MM)
-    sig = ndimage.gaussian_filter(levelled(yarn_signal(img, backlit)), 1.0)
-    return sig, max(pixel_size_mm, HAIR_PITCH_MM), core_diameter_px(sig) / 2
+    pixels; that pitch (mm); the core's radius there (px); the axis it was levelled by
+    there, :func:`axis_line`) of a grey image (H, W) at ``pixel_size_mm``: what the
+    hairiness measures read (module notes)."""
+    raw = yarn_signal(at_pitch(img, pixel_size_mm, HAIR_PITCH_MM), backlit)
+    line = axis_line(raw)
+    sig = ndimage.gaussian_filter(levelled(raw, line), 1.0)
+    return sig, max(pixel_size_mm, HAIR_PITCH_MM), core_diameter_px(sig) / 2, line
 
 
 def fiber_pixels(sig: np.ndarray) -> np.ndarray:
@@ -230,7 +232,7 @@ def hairiness(img: np.ndarray, pixel_size_mm: float, backlit: bool = True
     """Fibers per mm of yarn crossing the lines at each of :data:`HAIR_DISTANCES_MM` beyond
     the core's edge (module notes) in a grey image (H, W) at ``pixel_size_mm``; NaN where a
     line leaves the frame on both sides."""
-    sig, pitch, radius = hair_signal(img, pixel_size_mm, backlit)
+    sig, pitch, radius, _ = hair_signal(img, pixel_size_mm, backlit)
     return crossings_per_mm(fiber_pixels(sig), radius, pitch, HAIR_DISTANCES_MM)
 
 
@@ -349,8 +351,9 @@ def yarn_body(sig: np.ndarray, radius_px: float) -> np.ndarray:
 
 def hair_pieces(fiber: np.ndarray, body: np.ndarray) -> tuple[np.ndarray, np.ndarray,
                                                                 np.ndarray]:
-    """(skeleton, length (px) of each 8-connected piece of it, each piece's angle to the
-    axis in degrees) of the fiber pixels outside the yarn's ``body`` (:func:`yarn_body`)."""
+    """(the skeleton of the fiber pixels outside the yarn's ``body`` (:func:`yarn_body`),
+    each pixel labelled by its 8-connected piece, 1 .. K, 0 off it; each piece's length
+    (px); each piece's angle to the axis in degrees)."""
     from skimage.morphology import skeletonize
 
     skeleton = skeletonize(fiber & ~body)
@@ -366,7 +369,7 @@ def hair_pieces(fiber: np.ndarray, body: np.ndarray) -> tuple[np.ndarray, np.nda
             _, vecs = np.linalg.eigh(np.cov(np.stack([xs, ys]).astype(np.float64)))
             vx, vy = vecs[:, -1]
             angles[k] = math.degrees(math.atan2(abs(vy), abs(vx)))
-    return skeleton, lengths[1:], angles
+    return labels, lengths[1:], angles
 
 
 @dataclass(frozen=True)
@@ -473,14 +476,10 @@ def analyse(img: np.ndarray, pixel_size_mm: float, backlit: bool, plies: int | N
     period = stripe_period_px(sig, d) * pixel_size_mm
     slant = twist_slant(sig, d, period / pixel_size_mm)
     direction = None if abs(slant) < MIN_SLANT else ("Z" if slant > 0 else "S")
-    coarse = yarn_signal(at_pitch(img, pixel_size_mm, HAIR_PITCH_MM), backlit)
-    coarse_line = axis_line(coarse)
-    hair = ndimage.gaussian_filter(levelled(coarse, coarse_line), 1.0)
-    pitch, radius = max(pixel_size_mm, HAIR_PITCH_MM), core_diameter_px(hair) / 2
+    hair, pitch, radius, coarse_line = hair_signal(img, pixel_size_mm, backlit)
     fiber = fiber_pixels(hair)
-    skeleton, lengths, angles = hair_pieces(fiber, yarn_body(hair, radius))
+    labels, lengths, angles = hair_pieces(fiber, yarn_body(hair, radius))
     length_mm = hair.shape[1] * pitch
-    total = sum(step * len(first) for first, _, step in skeleton_links(skeleton))
     counts = {k: v * MM_PER_100M for k, v in
               crossings_per_mm(fiber, radius, pitch, ZWEIGLE_DISTANCES_MM).items()
               if math.isfinite(v)}
@@ -491,14 +490,13 @@ def analyse(img: np.ndarray, pixel_size_mm: float, backlit: bool, plies: int | N
         diameter_cv_pct=float(100 * np.std(profile) / np.mean(profile)) if len(profile) > 1
         else float("nan"),
         ply_period_mm=period, plies=plies, ply_twist_tpm=tpm, twist_direction=direction,
-        twist_slant=slant, hairiness_h=total * pitch / length_mm,
+        twist_slant=slant, hairiness_h=float(lengths.sum()) * pitch / length_mm,
         s3=counts.get(S3_DISTANCE_MM), hairs_per_100m={f"{k:g}": v for k, v in counts.items()},
         diameter_profile_mm=[float(x) for x in profile],
         hair_lengths_mm=[float(x) for x in lengths * pitch],
         hair_angles_deg=[float(x) for x in angles])
     # back from the levelled coarse grid to the photo's pixels
-    rows, cols = np.nonzero(skeleton)
-    labels, _ = ndimage.label(skeleton, structure=np.ones((3, 3)))
+    rows, cols = np.nonzero(labels)
     h = hair.shape[0]
     unlevelled = rows + coarse_line[0] * cols + coarse_line[1] - (h - 1) / 2
     f = pitch / pixel_size_mm

@@ -30,10 +30,11 @@ def write_json(path: Path, m: TextileMeasures) -> None:
     write_text(path, json.dumps(m.to_dict(), indent=1) + "\n")
 
 
-def overlay(gray: np.ndarray, m: TextileMeasures, drawing: Drawing) -> Image.Image:
+def overlay(gray: np.ndarray, m: TextileMeasures, drawing: Drawing) -> np.ndarray:
     """The photo (grey, H x W in [0, 1]) with the core's edges and every counted hair
     (coloured by its piece's length: :data:`LENGTH_COLOURS`) drawn over it, and the
-    measures written in its top left corner."""
+    measures written in its top left corner: (H, W, 3) uint8, for
+    :func:`ipm.photo.write_png`."""
     im = Image.fromarray(np.round(np.clip(gray, 0, 1) * 255).astype(np.uint8)).convert("RGB")
     draw = ImageDraw.Draw(im)
     w = gray.shape[1]
@@ -50,15 +51,7 @@ def overlay(gray: np.ndarray, m: TextileMeasures, drawing: Drawing) -> Image.Ima
     box = draw.multiline_textbbox((8, 8), text)
     draw.rectangle([box[0] - 4, box[1] - 4, box[2] + 4, box[3] + 4], fill=(255, 255, 255))
     draw.multiline_text((8, 8), text, fill=(0, 0, 0))
-    return im
-
-
-def write_png(path: Path, image: Image.Image) -> None:
-    """A PIL image as PNG, written atomically."""
-    buf = io.BytesIO()
-    image.save(buf, format="PNG")
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(buf.getvalue())
+    return np.asarray(im)
 
 
 def row(name: str, m: TextileMeasures) -> dict:

@@ -81,7 +81,7 @@ def main() -> None:
         for i, (image, pixel_size_mm, setup) in enumerate(records):
             times.append(time_fit(image, pixel_size_mm, setup, Path(tmp) / str(i)))
             written = json.loads((Path(tmp) / str(i) / "params.json").read_text())
-            fits.append(written["seconds"])
+            fits.append(json.loads((Path(tmp) / str(i) / "run.json").read_text())["fit_seconds"])
             evals.append(written["evaluations"])
             stages = ";".join(",".join(s["params"]) or s["name"]
                               for s in written["plan"]["stages"])

@@ -14,6 +14,7 @@ bits); :attr:`Photo.linear` gives linear light, and blurs happen there.
 
 from __future__ import annotations
 
+import io
 import os
 import warnings
 from dataclasses import dataclass, replace
@@ -34,8 +35,10 @@ if TYPE_CHECKING:
 MAX_PIXELS = 120_000_000
 
 
-def read_image(path: str | os.PathLike, max_pixels: int = MAX_PIXELS) -> np.ndarray:
-    """Decode any still image Pillow reads into ``(H, W, 3)`` float32 sRGB in [0, 1].
+def read_image(path: str | os.PathLike, max_pixels: int = MAX_PIXELS,
+               data: bytes | None = None) -> np.ndarray:
+    """Decode any still image Pillow reads into ``(H, W, 3)`` float32 sRGB in [0, 1]; with
+    ``data``, the file's bytes (a photo shipped to a worker), ``path`` only names it.
 
     8- and 16-bit (Pillow reads 16-bit colour at 8-bit precision, 16-bit grayscale in
     full), grayscale (replicated to three channels), palette, CMYK and alpha
@@ -46,11 +49,12 @@ def read_image(path: str | os.PathLike, max_pixels: int = MAX_PIXELS) -> np.ndar
     from ipm.io import check_regular_file
 
     name = os.fspath(path)
-    check_regular_file(name, "an image")
+    if data is None:
+        check_regular_file(name, "an image")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error", Image.DecompressionBombWarning)
-            with Image.open(name) as im:
+            with Image.open(name if data is None else io.BytesIO(data)) as im:
                 w, h = im.size
                 if w * h > max_pixels:
                     raise UserError(f"{name}: {w}x{h} px is too large "
@@ -260,9 +264,11 @@ class Photo:
 
     @classmethod
     def read(cls, path: str | os.PathLike, pixel_size_mm: float = PIXEL_SIZE_MM,
-             setup: str = DEFAULT_SETUP, truth: YarnParams | None = None) -> Photo:
-        """Decode ``path`` (:func:`read_image`)."""
-        return cls(read_image(path), pixel_size_mm, setup, truth, os.fspath(path))
+             setup: str = DEFAULT_SETUP, truth: YarnParams | None = None,
+             data: bytes | None = None) -> Photo:
+        """Decode ``path``, or the bytes ``data`` of a file of that name
+        (:func:`read_image`)."""
+        return cls(read_image(path, data=data), pixel_size_mm, setup, truth, os.fspath(path))
 
     @property
     def linear(self) -> np.ndarray:
@@ -424,11 +430,17 @@ def defocus(image: np.ndarray, sigma_px: float) -> np.ndarray:
                     preserve_range=True).astype(np.float32)
 
 
-def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
-    """Write an sRGB image ((H, W, 3) float in [0, 1] or uint8) as an RGB PNG, atomically."""
-    from ipm.io import atomic_path
-
+def png_bytes(image: np.ndarray) -> bytes:
+    """An sRGB image ((H, W, 3) float in [0, 1] or uint8) encoded as an RGB PNG."""
     if image.dtype != np.uint8:
         image = (np.clip(image, 0, 1) * 255).round().astype(np.uint8)
-    with atomic_path(path) as tmp:
-        Image.fromarray(np.ascontiguousarray(image), "RGB").save(tmp, format="PNG")
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(image), "RGB").save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write an sRGB image ((H, W, 3) float in [0, 1] or uint8) as an RGB PNG, atomically."""
+    from ipm.io import write_bytes
+
+    write_bytes(path, png_bytes(image))

@@ -19,6 +19,7 @@ from ipm.progress import progress_bar
 from ipm.refine.plan import FitConfig
 from ipm.render.commands import ForceOpt, PhotoSetupOpt
 from ipm.setups import AUTO_SETUP, DEFAULT_SETUP, INVERT_HELP, NAMES, check_setup_name, setup_of
+from ipm.workers import RAY_HELP
 
 #: The config of a command called without one (the options' defaults).
 DEFAULT_CONFIG = FitConfig()
@@ -54,9 +55,13 @@ def with_fit_options(command):
 @with_fit_options
 def fit(
     photo: Annotated[Path, typer.Argument(help="photo of a yarn running horizontally (PNG, "
-                                          "JPEG or TIFF; 8 or 16 bit)")],
+                                          "JPEG or TIFF; 8 or 16 bit), or a folder of "
+                                          "them (each fitted into its own folder in --out, "
+                                          "with a summary report)")],
     out: Annotated[Path, typer.Option("--out", "-o", help="folder for params.json, the "
-                                      "renders and compare.png")] = Path("fit"),
+                                      "renders and compare.png; for a folder of photos, "
+                                      "a folder per photo and the report (a stopped run "
+                                      "resumes)")] = Path("fit"),
     refine: Annotated[bool, typer.Option("--refine/--no-refine", help="refine the nets' "
                                          "guess by render-and-compare, in the stages of "
                                          "the capture setup and the photo (--dry-run "
@@ -75,6 +80,12 @@ def fit(
     variant: Annotated[str | None, typer.Option(help="Mitsuba variant")] = None,
     setup: PhotoSetupOpt = AUTO_SETUP,
     force: ForceOpt = False,
+    workers: Annotated[int | None, typer.Option(min=1, help="photos of a folder fitted side "
+                                                "by side, each by a process with its own nets "
+                                                "and renderer (default: 1; with --ray, one a "
+                                                "CPU of the cluster); refused if the free "
+                                                "memory cannot hold them")] = None,
+    ray: Annotated[str | None, typer.Option(help=RAY_HELP)] = None,
     config: FitConfig = DEFAULT_CONFIG,
 ) -> None:
     """Infer a yarn's parameters from a photo: the neural ensemble, and with --refine a
@@ -83,31 +94,38 @@ def fit(
     neural | refined), the renders shown at the photo's background level and defocus
     (params.json's capture).  The nets and the renders are those of the photo's capture
     setup (--setup)."""
-    from ipm.photo import Photo, pixel_size_of
+    from ipm.photo import pixel_size_of
+    from ipm.refine.fitter import FIT_FILES, FitJob, read_shot
 
-    sidecar = photo.with_suffix(".json")
-    check_not_inputs([out / f for f in ("neural.png", "refined.png", "compare.png",
-                                         "params.json", "knit.png", "knit.json")],
-                     [photo, sidecar if sidecar.is_file() else None, calibration], force)
+    job = FitJob(refine, knit, invert, setup, config)
     if knit is not None:
         from ipm.knit import faces
 
         faces(knit, 1, 1)  # an unknown pattern fails before any work
     check_setup_name(setup)  # an unknown setup fails before any work
+    if photo.is_dir():
+        if dry_run:
+            raise UserError("--dry-run reads one photo; give a photo, not a folder")
+        from ipm.refine.batch import fit_folder
+
+        raise typer.Exit(fit_folder(photo, out, job, pixel_size, calibration, models, variant,
+                                    workers, ray))
+    if workers is not None or ray is not None:
+        raise UserError("--workers and --ray fit a folder of photos; give a folder")
+    sidecar = photo.with_suffix(".json")
+    check_not_inputs([out / f for f in FIT_FILES],
+                     [photo, sidecar if sidecar.is_file() else None, calibration], force)
     pixel_size = pixel_size_of(photo, pixel_size, calibration)
-    shot, note = Photo.read(photo, pixel_size).upright()
-    shot, chosen = shot.with_setup(setup)
-    if note:
-        typer.echo(f"note: {note}", err=True)
-    if invert:
-        shot = shot.inverted()
+    read = read_shot(photo, pixel_size, job)
     if dry_run:
-        _dry_run(shot, pixel_size, refine, models, config, variant, chosen)
+        for line in read.lines:
+            typer.echo(line, err=True)
+        _dry_run(read.photo, pixel_size, refine, models, config, variant, read.chosen)
         return
     made_folder = not out.exists()
     prepare_folder(out)
     try:
-        _fit_into(out, shot, pixel_size, refine, knit, models, config, variant, chosen)
+        _fit_into(out, read, job, models, variant)
     except BaseException:
         if made_folder and out.is_dir() and not any(out.iterdir()):
             out.rmdir()  # a late error leaves no empty folder behind
@@ -134,94 +152,20 @@ def _dry_run(shot, pixel_size, refine, models, config, variant, chosen) -> None:
     typer.echo("\n".join(result.plan.lines()))
 
 
-def _fit_into(out, shot, pixel_size, refine, knit, models, config, variant,
-              chosen: str | None = None) -> None:
-    """The body of ``ipm fit`` once the photo is read and the folder made; ``chosen``: the
-    note of the setup told from the photo, said once the nets have read it."""
-    from ipm.io import write_text
-    from ipm.photo import write_png
-    from ipm.refine.capture import card_warning
-    from ipm.refine.display import (
-        compare_image,
-        display_renders,
-        summary_lines,
-        textile_block,
-        textile_lines,
-    )
-    from ipm.refine.fit import fit
-    from ipm.render.renderer import Renderer
-    from ipm.render.scene import setup_options
+def _fit_into(out: Path, read, job, models, variant) -> None:
+    """The body of ``ipm fit PHOTO`` once the photo is read and the folder made: the fit
+    with a progress bar over its renders, its lines said as they come, its files written."""
+    from ipm.refine.fitter import Fitter
 
-    for stale in ([] if refine else ["refined.png"]) + ([] if knit else ["knit.png", "knit.json"]):
-        (out / stale).unlink(missing_ok=True)  # from an earlier fit into the same folder
-    from ipm.nets.ensemble import Ensemble
-
-    try:
-        ensemble = Ensemble.load(models, setup=shot.setup)
-    except UserError as e:  # (nets of another setup: say how the photo was read)
-        raise UserError(f"{e}; {chosen}" if chosen else str(e)) from None
-    neural = ensemble.predict(shot)
-    if chosen:
-        typer.echo(f"note: {chosen}", err=True)
-    renderer = Renderer(variant, setup_options(shot.setup))
     with progress_bar("renders, best loss {task.fields[best]}", transient=True) as bar:
-        task = bar.add_task("refining" if refine else "scoring", best="-",
-                            total=config.budget * len(config.stage_params(shot.setup))
-                            * config.ply_counts)
-        result = fit(shot, neural, renderer, config, refine,
-                     on_eval=lambda i, loss, best: bar.update(task, completed=i,
-                                                             best=f"{best:.4f}"),
-                     sigma=ensemble.sigma(pixel_size) if config.prior else None,
-                     count_prior=ensemble.ply_count_probabilities(shot),
-                     readings=ensemble.readings,
-                     detail=ensemble.detail_readings(pixel_size))
-    if w := ensemble.upsampling_warning(pixel_size):
-        result.warnings.insert(0, w)
-    for w in result.warnings:
-        typer.echo(f"warning: {w}", err=True)
-    shown, neural_img, refined_img, capture = display_renders(renderer, shot, result, config)
-    if w := card_warning(capture, shot.setup):
-        typer.echo(f"warning: {w}", err=True)
-        result.warnings.append(w)
-    write_png(out / "neural.png", neural_img)
-    panels, labels = [shown, neural_img], ["photo", f"neural  loss {result.loss_neural:.4f}"]
-    if refine:
-        write_png(out / "refined.png", refined_img)
-        panels.append(refined_img)
-        labels.append(f"refined  loss {result.loss_refined:.4f}"
-                      + ("" if result.improved else "  (no improvement: neural kept)"))
-    if knit is not None:
-        panels.append(_knit_panel(renderer, result.refined if refine else result.neural, knit,
-                                  panels[0].shape[1], out))
-        labels.append(f"{knit} patch of the {'refined' if refine else 'neural'} yarn")
-    write_png(out / "compare.png", compare_image(panels, labels))
-    shown_in = {"exposure_stops": round(capture.exposure_stops, 3),  # the renders' look,
-                "backdrop_gain": round(capture.backdrop_gain, 3),  # not the yarn's
-                "blur_mm": round(capture.blur_mm, 5)}
-    textile = textile_block(shot, result.refined if refine else result.neural, refined_img
-                            if refine else neural_img, config)
-    write_text(out / "params.json", json.dumps({**result.to_dict(pixel_size, shot.setup),
-                                                "capture": shown_in, "textile": textile},
-                                               indent=2))
-    for line in summary_lines(result) + textile_lines(textile):
-        typer.echo(line, err=True)
-    typer.echo(f"loss neural {result.loss_neural:.4f} -> refined {result.loss_refined:.4f} "
-               f"({result.seconds:.0f} s); wrote {out}/params.json, compare.png", err=True)
+        def on_eval(total: int):
+            task = bar.add_task("refining" if job.refine else "scoring", best="-", total=total)
+            return lambda i, loss, best: bar.update(task, completed=i, best=f"{best:.4f}")
 
-
-def _knit_panel(renderer, params, pattern: str, width: int, out: Path):
-    """Knit ``params`` into an 8 x 6 patch ``width`` px wide and half as high; writes
-    knit.png and its sidecar knit.json into ``out`` and returns the image."""
-    from ipm.io import write_text
-    from ipm.photo import linear_to_srgb, write_png
-    from ipm.render.patch import knit_and_render
-
-    linear, record, _ = knit_and_render(renderer, params, pattern, (8, 6), (width, width // 2),
-                                        spp=16)
-    image = linear_to_srgb(linear)
-    write_png(out / "knit.png", image)
-    write_text(out / "knit.json", json.dumps(record, indent=2))
-    return image
+        result = Fitter(models, variant).fit(read, job, on_eval,
+                                             say=lambda line: typer.echo(line, err=True))
+    result.write(out)
+    typer.echo(f"wrote {out}/params.json, compare.png", err=True)
 
 
 @with_fit_options

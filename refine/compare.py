@@ -22,7 +22,7 @@ import numpy as np
 
 from ipm.dataset import MANIFEST, PHOTO_SUFFIXES, Record, photo_files, read_manifest
 from ipm.errors import UserError
-from ipm.io import write_text
+from ipm.io import content_hash, write_text
 from ipm.params import PAPER_INTERVALS, RAW_CONTINUOUS, YarnParams
 from ipm.photo import Photo, pixel_size_of
 from ipm.refine.search import LEVEL
@@ -166,25 +166,6 @@ def fit_all(path: Path, photos: Sequence[Record], neural_of: Callable[[int, Phot
             if progress:
                 progress(count, len(photos))
     return done
-
-
-def content_hash(path: Path) -> str | None:
-    """The SHA-256 of a photo's bytes, or None for one that is not a readable regular file
-    (never read: a FIFO would block)."""
-    import hashlib
-    import os
-    import stat
-
-    try:
-        if not stat.S_ISREG(os.stat(path).st_mode):
-            return None
-        h = hashlib.sha256()
-        with open(path, "rb") as f:
-            for block in iter(lambda: f.read(1 << 20), b""):
-                h.update(block)
-        return h.hexdigest()
-    except OSError:
-        return None
 
 
 def summary(rows: list[dict], truth: Sequence[YarnParams | None],

@@ -106,7 +106,6 @@ class FitResult:
             "evaluations": self.search.evaluations if self.search else 0,
             **({"ply_count_scores": {str(n): round(v, 3) for n, v in self.count_scores.items()}}
                if self.count_scores else {}),
-            "seconds": round(self.seconds, 2),
             "plan": self.plan.to_dict() if self.plan else None,
             "settings": {**asdict(config), "pixel_size_mm": pixel_size_mm, "setup": setup,
                          "tilt_deg": round(self.tilt_deg, 3), "prior_sigma": self.sigma},

@@ -24,12 +24,9 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 import zlib
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
@@ -192,42 +189,18 @@ def image_name(index: int) -> str:
 _renderer = None
 
 
-def _die_with_parent() -> None:
-    """End this worker when the process that started it ends, even by SIGKILL: Linux's
-    parent-death signal where there is one, and everywhere a thread that watches the parent
-    (a worker of a killed ``ipm generate`` would otherwise render on, orphaned)."""
-    import signal
-    import threading
-    import time
+class SampleMaker:
+    """What a worker of ``ipm generate`` holds (:class:`ipm.workers.Workers`): one
+    :class:`Renderer`, samples rendered in turn."""
 
-    parent = os.getppid()
-    if sys.platform.startswith("linux"):
-        import ctypes
+    def __init__(self, variant: str | None, scene: SceneOptions, threads: int | None) -> None:
+        global _renderer
+        from ipm.render.renderer import Renderer
 
-        try:
-            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-        except (OSError, AttributeError):
-            pass
-    if os.getppid() != parent:  # the parent died before the signal was set
-        os._exit(1)
+        _renderer = Renderer(variant, scene, threads=threads)
 
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(1.0)
-        os._exit(1)
-
-    threading.Thread(target=watch, daemon=True, name="parent-watch").start()
-
-
-def _init_worker(variant: str | None, scene: SceneOptions, threads: int) -> None:
-    global _renderer
-    import signal
-
-    from ipm.render.renderer import Renderer
-
-    _die_with_parent()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the command's to handle
-    _renderer = Renderer(variant, scene, threads=threads)
+    def make(self, folder: str, opts: GenerateOptions, index: int) -> Record:
+        return make_sample(folder, opts, index)
 
 
 def make_sample(folder: str, opts: GenerateOptions, index: int) -> Record:
@@ -296,39 +269,6 @@ def _prepare(folder: Path, opts: GenerateOptions) -> dict[int, Record]:
 Progress = Callable[[int, int], None]
 
 
-class _RayRenderer:
-    """A Ray actor: one :class:`Renderer` per actor process, samples rendered in turn."""
-
-    def __init__(self, variant: str | None, scene: SceneOptions, threads: int) -> None:
-        _init_worker(variant, scene, threads)
-
-    def make(self, folder: str, opts: GenerateOptions, index: int) -> Record:
-        return make_sample(folder, opts, index)
-
-
-def _ray_submit(address: str, folder: Path, opts: GenerateOptions, todo: list[int],
-                workers: int | None, variant: str | None) -> set:
-    """Futures of the samples ``todo`` on a Ray cluster: ``address`` "auto" joins a running
-    one (``ray start --head``), "local" starts one on this machine; a process that already
-    called ``ray.init`` keeps its cluster.  Actors write into ``folder``, which must be a
-    path every node shares."""
-    try:
-        import ray
-    except ImportError:
-        raise UserError("--ray needs the ray extra: pip install -e '.[ray]'") from None
-    if not ray.is_initialized():
-        try:
-            ray.init(address=None if address == "local" else address, log_to_driver=False,
-                     include_dashboard=False)
-        except ConnectionError as e:
-            raise UserError(f"cannot reach a Ray cluster at {address!r}: {e}") from None
-    cpus = int(ray.cluster_resources().get("CPU", 1))
-    actors = [ray.remote(num_cpus=1)(_RayRenderer).remote(variant, opts.scene, 1)
-              for _ in range(min(workers or cpus, cpus, len(todo)))]
-    return {actors[k % len(actors)].make.remote(str(folder), opts, i).future()
-            for k, i in enumerate(todo)}
-
-
 def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: int | None = None,
                      variant: str | None = None, progress: Progress | None = None,
                      ray: str | None = None) -> list[Record]:
@@ -340,9 +280,7 @@ def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: 
     the samples are the same bytes either way.  Returns the records by index.
     """
     folder = Path(folder)
-    cores = os.cpu_count() or 1
-    workers = workers or cores
-    if workers < 1:
+    if workers is not None and workers < 1:
         raise UserError(f"workers must be >= 1, got {workers}")
     from ipm.render.variant import requested_variant
 
@@ -352,28 +290,19 @@ def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: 
     if progress:
         progress(opts.count - len(todo), opts.count)
     if todo:
-        pool = None
-        if ray is None:  # spawn, not fork: Dr.Jit's threads do not survive a fork
-            pool = ProcessPoolExecutor(min(workers, len(todo)), mp_context=get_context("spawn"),
-                                       initializer=_init_worker,
-                                       initargs=(variant, opts.scene, max(1, cores // workers)))
-        try:
-            made = 0
-            with open(folder / MANIFEST, "a", encoding="utf-8") as manifest:
-                pending = ({pool.submit(make_sample, str(folder), opts, i) for i in todo}
-                           if pool else _ray_submit(ray, folder, opts, todo, workers, variant))
-                while pending:
-                    finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                    for fut in finished:
-                        rec = fut.result()
-                        manifest.write(manifest_line(folder, rec))
-                        manifest.flush()
-                        done[rec.index] = rec
-                        made += 1
-                    if progress:
-                        progress(opts.count - len(todo) + made, opts.count)
-        finally:
-            if pool:
-                pool.shutdown(cancel_futures=True)
+        from ipm.workers import Workers
+
+        made = 0
+        count = min(workers or (len(todo) if ray else os.cpu_count() or 1), len(todo))
+        with (Workers(SampleMaker, (variant, opts.scene), count, ray) as pool,
+              open(folder / MANIFEST, "a", encoding="utf-8") as manifest):
+            tasks = ((i, (str(folder), opts, i)) for i in todo)
+            for _, rec in pool.run("make", tasks):
+                manifest.write(manifest_line(folder, rec))
+                manifest.flush()
+                done[rec.index] = rec
+                made += 1
+                if progress:
+                    progress(opts.count - len(todo) + made, opts.count)
     write_manifest(folder, list(done.values()))
     return [done[i] for i in sorted(done)]

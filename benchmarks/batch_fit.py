@@ -38,10 +38,13 @@ BAD_FILES = (("bad_text.png", b"this is not an image\n"),
 
 
 class PeakMemory:
-    """Every process's peak resident set (VmHWM, MB) seen while polling all of them."""
+    """Every process's peak resident set (VmHWM, MB) and CPU time (user + system, s) seen
+    while polling all of them."""
 
     def __init__(self, every: float = 0.5) -> None:
         self.peak: dict[int, float] = {}
+        self.cpu: dict[int, float] = {}
+        self._tick = os.sysconf("SC_CLK_TCK")
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._poll, args=(every,), daemon=True)
 
@@ -55,7 +58,10 @@ class PeakMemory:
                                 mb = int(line.split()[1]) / 1024
                                 self.peak[pid] = max(self.peak.get(pid, 0.0), mb)
                                 break
-                except OSError:
+                    with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as f:
+                        fields = f.read().rsplit(")", 1)[1].split()
+                    self.cpu[pid] = (int(fields[11]) + int(fields[12])) / self._tick
+                except (OSError, IndexError, ValueError):
                     continue
             self._stop.wait(every)
 
@@ -91,9 +97,11 @@ def runs_of(out: Path) -> list[dict]:
     return [json.loads(p.read_text()) for p in sorted(out.glob("*/run.json"))]
 
 
-def worker_peaks(out: Path, mem: PeakMemory) -> list[float]:
+def worker_peaks(out: Path, mem: PeakMemory) -> tuple[list[float], float]:
+    """The workers' peak memory (MB) and their CPU time together (s, as last polled)."""
     pids = {r["worker"]["pid"] for r in runs_of(out)}
-    return sorted(mem.peak.get(pid, float("nan")) for pid in pids)
+    return (sorted(mem.peak.get(pid, float("nan")) for pid in pids),
+            sum(mem.cpu.get(pid, 0.0) for pid in pids))
 
 
 def throughput(args, photos: Path) -> tuple[list[str], dict[str, bytes], Path]:
@@ -103,8 +111,9 @@ def throughput(args, photos: Path) -> tuple[list[str], dict[str, bytes], Path]:
     ways = [("local, 1 worker (this process)", []), ("local, 2 workers", ["--workers", "2"]),
             ("Ray local, 1 actor", ["--ray", "local", "--workers", "1"]),
             ("Ray local, 2 actors", ["--ray", "local", "--workers", "2"])]
-    lines = ["| how | wall time (s) | photos per minute | vs. one worker | worker peak memory "
-             "(MB) | params.json as one worker's |", "|---|---|---|---|---|---|"]
+    lines = ["| how | wall time (s) | photos per minute | vs. one worker | cores busy (workers' "
+             "CPU time / wall time) | worker peak memory (MB) | params.json as one worker's |",
+             "|---|---|---|---|---|---|---|"]
     reference, first = None, None
     rate1 = {}
     for k, (name, extra) in enumerate(ways):
@@ -121,9 +130,10 @@ def throughput(args, photos: Path) -> tuple[list[str], dict[str, bytes], Path]:
         same = sum(files[k2] == reference[k2] for k2 in reference)
         rate = 60 * count / seconds
         base = rate1.setdefault(name.split(",")[0], rate)
-        peaks = worker_peaks(out, mem)
+        peaks, cpu = worker_peaks(out, mem)
         lines.append(f"| {name} | {seconds:.0f} | {rate:.2f} | {rate / base:.2f}x | "
-                     f"{', '.join(f'{p:.0f}' for p in peaks)} | {same} of {count} |")
+                     f"{cpu / seconds:.2f} | {', '.join(f'{p:.0f}' for p in peaks)} | "
+                     f"{same} of {count} |")
         print(lines[-1], flush=True)
     return lines, reference, first
 

@@ -65,6 +65,15 @@ class Recorder:
                           "compare.png": b"png"}, "lines": [], "seconds": 0.1, "worker": {}}
 
 
+def folder_of(tmp_path: Path, count: int) -> Path:
+    """A folder of ``count`` small photos f0.png, f1.png, ..."""
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for i in range(count):
+        photo(photos / f"f{i}.png", i)
+    return photos
+
+
 @pytest.fixture
 def recorder(monkeypatch):
     monkeypatch.setattr("ipm.refine.fitter.Fitter", Recorder)
@@ -78,10 +87,7 @@ def run(folder: Path, out: Path, **kw) -> int:
 
 
 def test_a_folder_is_fitted_into_a_folder_per_photo_with_a_report(tmp_path, recorder, capsys):
-    photos = tmp_path / "photos"
-    photos.mkdir()
-    for i in range(3):
-        photo(photos / f"frame{i}.png", i)
+    photos = folder_of(tmp_path, 3)
     (photos / "broken.png").write_bytes(b"not an image")
     (photos / "notes.txt").write_text("not a photo")
     out = tmp_path / "out"
@@ -90,23 +96,20 @@ def test_a_folder_is_fitted_into_a_folder_per_photo_with_a_report(tmp_path, reco
     assert "error: not fitted: broken.png is not an image Pillow can read" in err
     assert "3 of 4 photos fitted" in err
     for i in range(3):
-        params = json.loads((out / f"frame{i}" / "params.json").read_text())
-        assert params["photo"]["file"] == f"frame{i}.png"
-        assert json.loads((out / f"frame{i}" / "run.json").read_text())["fit_seconds"] == 0.1
+        params = json.loads((out / f"f{i}" / "params.json").read_text())
+        assert params["photo"]["file"] == f"f{i}.png"
+        assert json.loads((out / f"f{i}" / "run.json").read_text())["fit_seconds"] == 0.1
     rows = (out / batch.CSV).read_text().splitlines()
     assert rows[0].startswith("photo,folder,status,error")
     assert [r.split(",")[:3] for r in rows[1:]] == [
-        ["broken.png", "broken", "failed"], *[[f"frame{i}.png", f"frame{i}", "fitted"]
+        ["broken.png", "broken", "failed"], *[[f"f{i}.png", f"f{i}", "fitted"]
                                               for i in range(3)]]
     assert (out / batch.FIGURE).read_bytes().startswith(b"\x89PNG")
     assert "3 of 4 photos fitted" in (out / batch.PAGE).read_text()
 
 
 def test_a_rerun_fits_only_what_is_missing_or_changed(tmp_path, recorder):
-    photos = tmp_path / "photos"
-    photos.mkdir()
-    for i in range(3):
-        photo(photos / f"f{i}.png", i)
+    photos = folder_of(tmp_path, 3)
     out = tmp_path / "out"
     assert run(photos, out) == 0
     report = (out / batch.CSV).read_bytes()
@@ -120,10 +123,7 @@ def test_a_rerun_fits_only_what_is_missing_or_changed(tmp_path, recorder):
 
 
 def test_an_interrupted_run_resumes_to_the_same_report(tmp_path, recorder, capsys):
-    photos = tmp_path / "photos"
-    photos.mkdir()
-    for i in range(4):
-        photo(photos / f"f{i}.png", i)
+    photos = folder_of(tmp_path, 4)
     whole = tmp_path / "whole"
     assert run(photos, whole) == 0
     recorder.calls.clear()
@@ -142,9 +142,7 @@ def test_an_interrupted_run_resumes_to_the_same_report(tmp_path, recorder, capsy
 
 
 def test_a_folder_fit_refuses_what_it_cannot_do(tmp_path, recorder):
-    photos = tmp_path / "photos"
-    photos.mkdir()
-    photo(photos / "f.png", 0)
+    photos = folder_of(tmp_path, 1)
     with pytest.raises(UserError, match="is the folder of photos"):
         run(photos, photos)
     other = tmp_path / "other"
@@ -158,7 +156,7 @@ def test_a_folder_fit_refuses_what_it_cannot_do(tmp_path, recorder):
         batch.fit_folder(photos, out, FitJob(refine=True), 0.01, None, None, None, None, None)
     with pytest.raises(UserError, match="use --workers 2"):
         batch.check_memory(1000, gb=free_gb() / 2.5)
-    assert recorder.calls == ["f.png"]
+    assert recorder.calls == ["f0.png"]
 
 
 def free_gb() -> float:

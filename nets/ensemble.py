@@ -23,12 +23,11 @@ from ipm.errors import UserError
 from ipm.frame import PIXEL_SIZE_MM, pitch_factor
 from ipm.nets.data import centre_crops
 from ipm.nets.model import YarnNet
-from ipm.nets.store import load_net, read_json
+from ipm.nets.store import ENSEMBLE, load_net, read_json
 from ipm.params import PARAM_ORDER, YarnParams
 from ipm.photo import Photo
 from ipm.setups import DEFAULT_SETUP, SETUPS, setup_of
 
-ENSEMBLE = "ensemble.json"
 #: The shipped nets of each capture setup (:attr:`ipm.setups.CaptureSetup.models`).
 SHIPPED_FOR = {name: Path(__file__).parent / s.models for name, s in SETUPS.items()}
 #: Default models: those of the default setup.

@@ -24,6 +24,8 @@ from ipm.nets.model import NetConfig, YarnNet
 
 WEIGHTS = "model.safetensors"
 CONFIG = "model.json"
+#: An ensemble folder's list of its nets (and the setup they were trained on).
+ENSEMBLE = "ensemble.json"
 CHECKPOINT = "checkpoint.safetensors"
 
 
@@ -131,3 +133,36 @@ def load_checkpoint(path: Path, net: YarnNet, optimizer: torch.optim.Optimizer) 
     except (KeyError, ValueError, RuntimeError) as e:
         raise UserError(f"checkpoint {path} does not match this run "
                         f"({str(e).splitlines()[0]}); use another --out") from None
+
+
+def pack_ensemble(folder: Path) -> bytes:
+    """The files of an ensemble folder that its nets load (its :data:`ENSEMBLE` and each
+    listed net's config and weights) as one tar: nets sent to a worker on a machine that
+    does not have the folder (``ipm fit FOLDER --ray ... --models DIR``)."""
+    import io
+    import tarfile
+
+    manifest = read_json(folder / ENSEMBLE)
+    names = manifest.get("nets") if isinstance(manifest, dict) else None
+    if not isinstance(names, list):
+        raise UserError(f"{folder / ENSEMBLE} lists no nets")
+    buf = io.BytesIO()
+    with tarfile.open(fileobj=buf, mode="w") as tar:
+        tar.add(folder / ENSEMBLE, ENSEMBLE)
+        for name in names:
+            for f in (CONFIG, WEIGHTS):
+                if (folder / str(name) / f).is_file():  # (a missing one: said when loaded)
+                    tar.add(folder / str(name) / f, f"{name}/{f}")
+    return buf.getvalue()
+
+
+def unpack_ensemble(data: bytes) -> Path:
+    """:func:`pack_ensemble`'s tar unpacked into a new temporary folder, returned."""
+    import io
+    import tarfile
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="ipm-nets-"))
+    with tarfile.open(fileobj=io.BytesIO(data)) as tar:
+        tar.extractall(folder, filter="data")
+    return folder

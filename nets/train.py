@@ -37,6 +37,7 @@ from ipm.nets.objective import Objective
 from ipm.nets.store import (
     CHECKPOINT,
     CONFIG,
+    ENSEMBLE,
     load_checkpoint,
     load_net,
     read_json,
@@ -46,7 +47,6 @@ from ipm.nets.store import (
 from ipm.nets.tasks import TASKS, Task
 from ipm.params import PAPER_INTERVALS, from_unit
 
-ENSEMBLE = "ensemble.json"
 #: Options that may change when a run is resumed; any other change needs a new --out.
 RESUMABLE = {"epochs", "workers", "device", "out", "nets", "steps_per_epoch", "data", "val",
              "real", "init"}

@@ -162,6 +162,10 @@ def fit_folder(folder: Path, out: Path, job: FitJob, pixel_size: float | None,
         ended: set[int] = set()  # fitted or failed in this run
         try:
             if todo:
+                if ray and models:  # Ray's nodes need not have the folder: its nets go along
+                    from ipm.nets.store import pack_ensemble
+
+                    models = pack_ensemble(models)
                 with Workers(Fitter, (models, variant), count, ray) as pool:
                     for i, r in pool.run("fit_file", _tasks(items, todo, job, failed)):
                         ended.add(i)

@@ -67,12 +67,21 @@ class FitOutput:
 
 
 class Fitter:
-    """What fits photos holds: the nets (``models``, the shipped ones if None) and a
-    renderer per capture setup, made on first use; ``threads`` for torch and Dr.Jit (None:
-    their defaults, every core)."""
+    """What fits photos holds: the nets (``models``, the shipped ones if None; bytes of
+    :func:`ipm.nets.store.pack_ensemble` on a machine without the folder) and a renderer
+    per capture setup, made on first use; ``threads`` for torch and Dr.Jit (None: their
+    defaults, every core)."""
 
-    def __init__(self, models: Path | None = None, variant: str | None = None,
+    def __init__(self, models: Path | bytes | None = None, variant: str | None = None,
                  threads: int | None = None) -> None:
+        if isinstance(models, bytes):
+            import atexit
+            import shutil
+
+            from ipm.nets.store import unpack_ensemble
+
+            models = unpack_ensemble(models)
+            atexit.register(shutil.rmtree, models, ignore_errors=True)
         self.models, self.variant, self.threads = models, variant, threads
         self._nets: dict[str, object] = {}
         self._renderers: dict[str, object] = {}

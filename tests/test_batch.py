@@ -238,3 +238,16 @@ def test_a_killed_run_leaves_no_worker_and_resumes(tmp_path):
     for name, mtime in first.items():
         assert (out / name / "params.json").stat().st_mtime_ns == mtime  # not fitted again
     assert sorted(p.parent.name for p in out.glob("*/params.json")) == ["left", "right"]
+
+
+def test_nets_sent_as_bytes_unpack_to_the_same_files(tmp_path):
+    from ipm.nets.ensemble import SHIPPED_FOR, Ensemble
+    from ipm.nets.store import pack_ensemble, unpack_ensemble
+
+    folder = SHIPPED_FOR["backlit"]
+    copy = unpack_ensemble(pack_ensemble(folder))
+    files = sorted(p.relative_to(copy) for p in copy.rglob("*") if p.is_file())
+    assert Path("ensemble.json") in files and len(files) > 10
+    for f in files:
+        assert (copy / f).read_bytes() == (folder / f).read_bytes()
+    assert Ensemble.load(copy, setup="backlit").setup == "backlit"

@@ -60,10 +60,8 @@ class FitOutput:
         for name in FIT_FILES:
             if name in self.files:
                 write_bytes(folder / name, self.files[name])
-            elif name != RUN:
+            else:
                 (folder / name).unlink(missing_ok=True)
-        if RUN in self.files:
-            write_bytes(folder / RUN, self.files[RUN])
 
 
 class Fitter:

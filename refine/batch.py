@@ -291,7 +291,7 @@ def figure(rows: list[dict]) -> bytes:
                              gridspec_kw={"width_ratios": (3, 1)}, squeeze=False)
     for (key, label), (along, hist) in zip(FIGURE_ROWS, axes, strict=True):
         x, v = _values(rows, key)
-        if f"{key}_lo" in rows[0] or any(f"{key}_lo" in r for r in rows):
+        if any(f"{key}_lo" in r for r in rows):
             _, lo = _values(rows, f"{key}_lo")
             _, hi = _values(rows, f"{key}_hi")
             if len(lo) == len(v):

@@ -118,9 +118,7 @@ def fit(
     pixel_size = pixel_size_of(photo, pixel_size, calibration)
     read = read_shot(photo, pixel_size, job)
     if dry_run:
-        for line in read.lines:
-            typer.echo(line, err=True)
-        _dry_run(read.photo, pixel_size, refine, models, config, variant, read.chosen)
+        _dry_run(read, job, models, variant)
         return
     made_folder = not out.exists()
     prepare_folder(out)
@@ -132,20 +130,23 @@ def fit(
         raise
 
 
-def _dry_run(shot, pixel_size, refine, models, config, variant, chosen) -> None:
-    """``ipm fit --dry-run``: the stages the fit of ``shot`` would run (the gates measured on
-    the photo, the nets' reading and a render of the nets' yarn), nothing written."""
-    from ipm.nets.ensemble import Ensemble
+def _dry_run(read, job, models, variant) -> None:
+    """``ipm fit --dry-run``: the stages the fit of the photo ``read`` would run (the gates
+    measured on the photo, the nets' reading and a render of the nets' yarn), nothing
+    written."""
     from ipm.refine.fit import fit
-    from ipm.render.renderer import Renderer
-    from ipm.render.scene import setup_options
+    from ipm.refine.fitter import Fitter
 
-    ensemble = Ensemble.load(models, setup=shot.setup)
+    shot, config = read.photo, job.config
+    for line in read.lines:
+        typer.echo(line, err=True)
+    fitter = Fitter(models, variant)
+    ensemble = fitter.nets(shot.setup)
     neural = ensemble.predict(shot)
-    if chosen:
-        typer.echo(f"note: {chosen}", err=True)
-    result = fit(shot, neural, Renderer(variant, setup_options(shot.setup)), config, refine,
-                 sigma=ensemble.sigma(pixel_size) if config.prior else None,
+    if read.chosen:
+        typer.echo(f"note: {read.chosen}", err=True)
+    result = fit(shot, neural, fitter.renderer(shot.setup), config, job.refine,
+                 sigma=ensemble.sigma(shot.pixel_size_mm) if config.prior else None,
                  count_prior=ensemble.ply_count_probabilities(shot), dry_run=True)
     for w in result.warnings:
         typer.echo(f"warning: {w}", err=True)

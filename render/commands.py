@@ -14,6 +14,7 @@ from ipm.errors import UserError
 from ipm.io import check_not_inputs, check_output
 from ipm.params import YARN_HELP
 from ipm.setups import DEFAULT_SETUP, PHOTO_SETUP_HELP, SETUP_HELP
+from ipm.workers import RAY_HELP
 
 DEFAULT_RENDER_SCALE = 0.25
 DEFAULT_RENDER_SPP = 16
@@ -237,10 +238,7 @@ def generate(
     variant: VariantOpt = None,
     setup: SetupOpt = DEFAULT_SETUP,
     card: CardOpt = None,
-    ray: Annotated[str | None, typer.Option(help="render on Ray instead of a local pool: "
-                                            "'auto' joins a running cluster, 'local' starts "
-                                            "one, or host:port (pip install -e '.[ray]')")]
-    = None,
+    ray: Annotated[str | None, typer.Option(help=RAY_HELP)] = None,
     yarns: Annotated[str, typer.Option(help="the kind of yarns drawn: knitting (the paper's "
                                        "sampler) or fine (spun yarns 0.15-0.6 mm thick, as "
                                        "a microscope sees them)")] = "knitting",

@@ -186,41 +186,33 @@ def image_name(index: int) -> str:
 
 
 # -- workers ---------------------------------------------------------------------------------
-_renderer = None
-
-
 class SampleMaker:
     """What a worker of ``ipm generate`` holds (:class:`ipm.workers.Workers`): one
     :class:`Renderer`, samples rendered in turn."""
 
     def __init__(self, variant: str | None, scene: SceneOptions, threads: int | None) -> None:
-        global _renderer
         from ipm.render.renderer import Renderer
 
-        _renderer = Renderer(variant, scene, threads=threads)
+        self.renderer = Renderer(variant, scene, threads=threads)
 
     def make(self, folder: str, opts: GenerateOptions, index: int) -> Record:
-        return make_sample(folder, opts, index)
+        """Render sample ``index`` into ``folder`` (atomically) and return its manifest
+        record."""
+        from ipm.photo import write_png
+        from ipm.render.photometric import encode
 
-
-def make_sample(folder: str, opts: GenerateOptions, index: int) -> Record:
-    """Render sample ``index`` into ``folder`` (atomically) and return its manifest record.
-    Runs in a worker process (its :class:`Renderer` is made by the pool initializer)."""
-    from ipm.photo import write_png
-    from ipm.render.photometric import encode
-
-    plan = sample_plan(opts, index)
-    spp = _renderer.sample_count(opts.scale, plan.spp, opts.frame)
-    image = _renderer.render(plan.params, plan.fiber_seed, opts.scale, spp, plan.render_seed,
-                             plan.photometric, opts.frame)
-    write_png(Path(folder, image_name(index)), encode(image, plan.photometric))
-    height, width = image.shape[:2]
-    return Record(Path(folder, image_name(index)), pixel_size_mm(opts.scale), plan.params,
-                  plan.fiber_seed, setup=opts.scene.setup, index=index, info={
-                      "split": opts.split, "render_seed": plan.render_seed,
-                      "scale": opts.scale, "spp": spp, "width": width, "height": height,
-                      "photometric": plan.photometric.to_dict(),
-                      "variant": _renderer.variant})
+        plan = sample_plan(opts, index)
+        spp = self.renderer.sample_count(opts.scale, plan.spp, opts.frame)
+        image = self.renderer.render(plan.params, plan.fiber_seed, opts.scale, spp,
+                                     plan.render_seed, plan.photometric, opts.frame)
+        write_png(Path(folder, image_name(index)), encode(image, plan.photometric))
+        height, width = image.shape[:2]
+        return Record(Path(folder, image_name(index)), pixel_size_mm(opts.scale), plan.params,
+                      plan.fiber_seed, setup=opts.scene.setup, index=index, info={
+                          "split": opts.split, "render_seed": plan.render_seed,
+                          "scale": opts.scale, "spp": spp, "width": width, "height": height,
+                          "photometric": plan.photometric.to_dict(),
+                          "variant": self.renderer.variant})
 
 
 # -- folder state ----------------------------------------------------------------------------
@@ -272,10 +264,11 @@ Progress = Callable[[int, int], None]
 def generate_dataset(folder: str | os.PathLike, opts: GenerateOptions, workers: int | None = None,
                      variant: str | None = None, progress: Progress | None = None,
                      ray: str | None = None) -> list[Record]:
-    """Make (or complete) the dataset in ``folder`` with a local process pool, or on Ray.
+    """Make (or complete) the dataset in ``folder`` with workers (:class:`ipm.workers.Workers`).
 
-    workers: processes (default: one per core), each with its own :class:`Renderer` and
-    cores / workers render threads.  progress: called as ``progress(done, count)``.
+    workers: how many (default: one per core; one is this process), each with its own
+    :class:`Renderer` and cores / workers render threads.  progress: called as
+    ``progress(done, count)``.
     ray: a Ray address ("auto", "local", ``host:port``) to render on Ray actors instead;
     the samples are the same bytes either way.  Returns the records by index.
     """

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import math
+
 import numpy as np
 
-from ipm.frame import pixel_size_mm
+from ipm.frame import FRAME_HEIGHT_MM, FRAME_WIDTH_MM, pixel_size_mm
 from ipm.params import PAPER_INTERVALS, YarnParams
 from ipm.photo import Photo
 from ipm.refine.capture import CARD_TOLERANCE_STOPS, in_capture, matched_blur, matched_level
@@ -16,6 +18,7 @@ from ipm.refine.measure import search_view
 from ipm.refine.objective import centre_crop
 from ipm.refine.search import LEVEL
 from ipm.render.photometric import Photometric
+from ipm.render.scene import Frame, frame_size
 from ipm.setups import setup_of
 
 if TYPE_CHECKING:
@@ -24,21 +27,48 @@ if TYPE_CHECKING:
 
 
 
+#: The most pixels a photo's renders are shown at: a larger photo's are shown at a coarser
+#: pitch over its whole field of view.
+MAX_DISPLAY_PIXELS = 4_000_000
+#: The fewest samples per pixel of a render shown at a photo's own pixels.
+MIN_DISPLAY_SPP = 4
+
+
+def display_view(photo: Photo, config: FitConfig) -> tuple[float, Frame | None]:
+    """The scale, and the view if not the yarn frame, that the photo and its renders are
+    shown at.  A photo that shows less than the yarn frame (a microscope's) is shown at its
+    own pixels over its own field of view, so that a fiber can be judged beside the photo
+    (the search renders it coarser: :func:`search_view`), at most
+    :data:`MAX_DISPLAY_PIXELS`; any other photo at ``config.display_scale``."""
+    scale, frame = search_view(photo, config.display_scale)
+    if frame is None:
+        return scale, None
+    h, w = photo.image.shape[:2]
+    pitch = photo.pixel_size_mm * max(1.0, math.sqrt(h * w / MAX_DISPLAY_PIXELS))
+    return pixel_size_mm(pitch), Frame(
+        min(round(w * photo.pixel_size_mm / pitch), math.floor(FRAME_WIDTH_MM / pitch)),
+        min(round(h * photo.pixel_size_mm / pitch), math.floor(FRAME_HEIGHT_MM / pitch)),
+        pitch)
+
+
 def display_renders(renderer, photo: Photo, result: FitResult, config: FitConfig
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Photometric]:
-    """(photo, neural render, refined render) as sRGB at ``display_scale`` (a photo of a
-    smaller field of view at a finer pitch, :func:`search_view`), cut to their common
-    extent, the renders in the photo's capture, and that capture (:mod:`ipm.refine.capture`:
-    lit in front, the card's albedo matched on a render at the search's pitch, rendered
-    with; lit from behind, the exposure; and the defocus matched on the refined render,
-    applied to both)."""
-    scale, frame = search_view(photo, config.display_scale)
+    """(photo, neural render, refined render) as sRGB in the :func:`display_view`, cut to
+    their common extent, the renders in the photo's capture, and that capture
+    (:mod:`ipm.refine.capture`: lit in front, the card's albedo matched on a render at the
+    search's pitch, rendered with; lit from behind, the exposure; and the defocus matched
+    on the refined render, applied to both).  A view of more pixels than the yarn frame at
+    ``display_scale`` is rendered with fewer samples per pixel, as many samples in all (at
+    least :data:`MIN_DISPLAY_SPP`): its pixels are finer than the fibers' edges."""
+    scale, frame = display_view(photo, config)
     shown = photo.at_pitch(scale)
     pitch = pixel_size_mm(scale)
+    budget = math.prod(frame_size(config.display_scale)) * config.display_spp
+    spp = config.display_spp if frame is None else min(config.display_spp, max(
+        MIN_DISPLAY_SPP, budget // (frame.width * frame.height)))
 
     def rendered(p: YarnParams, look: Photometric) -> np.ndarray:
-        img = renderer.render(p, config.fiber_seed, scale, config.display_spp,
-                              photometric=look, frame=frame)
+        img = renderer.render(p, config.fiber_seed, scale, spp, photometric=look, frame=frame)
         return centre_crop(img, min(shown.shape[0], img.shape[0]),
                            min(shown.shape[1], img.shape[1]))
 
@@ -54,7 +84,8 @@ def display_renders(renderer, photo: Photo, result: FitResult, config: FitConfig
         card = matched_level(centre_crop(small, h, w), centre_crop(probe, h, w), tilted, setup)
         if abs(np.log2(card.backdrop_gain)) > CARD_TOLERANCE_STOPS:
             scene = card
-    refined, neural = (rendered(p, scene) for p in (result.refined, result.neural))
+    refined = rendered(result.refined, scene)
+    neural = refined if result.neural == result.refined else rendered(result.neural, scene)
     shown = centre_crop(shown, *refined.shape[:2])
     level = matched_level(shown, refined, scene, setup) if behind else scene
     capture = matched_blur(shown, refined, pitch, level)
@@ -106,7 +137,7 @@ def textile_block(photo: Photo, fitted: YarnParams, render: np.ndarray, config: 
     from ipm.textile.image import measure_photo
 
     behind = setup_of(photo.setup).light_behind
-    pitch = pixel_size_mm(search_view(photo, config.display_scale)[0])
+    pitch = pixel_size_mm(display_view(photo, config)[0])
     return {"photo": measure_photo(photo.image.mean(axis=2), photo.pixel_size_mm, behind,
                                    fitted.n).brief(),
             "render": measure_photo(render.mean(axis=2), pitch, behind, fitted.n).brief(),

@@ -273,6 +273,38 @@ def test_a_small_fine_photo_is_searched_over_its_own_view_at_a_finer_pitch():
     assert np.corrcoef(part.mean(axis=1), expected)[0, 1] > 0.95
 
 
+def test_a_microscope_photo_is_shown_at_its_own_pixels():
+    """The photo and its renders a fit writes are shown at the photo's own pixels over its
+    field (not at the search's coarser pitch), one pixel for one, so a fiber can be judged
+    side by side; a photo of more than MAX_DISPLAY_PIXELS is shown coarser over the same
+    field; a photo as large as the yarn frame keeps the display scale."""
+    from types import SimpleNamespace
+
+    from ipm.photo import Photo
+    from ipm.refine.display import MAX_DISPLAY_PIXELS, display_renders, display_view
+    from ipm.refine.plan import FitConfig
+    from ipm.render.renderer import Renderer
+    from ipm.render.scene import setup_options
+
+    config = FitConfig()
+    photo = Photo(np.full((240, 320, 3), 0.8, np.float32), 0.0021, setup="backlit")
+    yarn = preset("golden").replace(R_ply=0.08, r_x=0.06, r_y=0.05)
+    result = SimpleNamespace(refined=yarn, neural=yarn, tilt_deg=0.0)
+    shown, neural, refined, _ = display_renders(
+        Renderer(options=setup_options("backlit")), photo, result, config)
+    assert shown.shape == neural.shape == refined.shape == (240, 320, 3)
+    np.testing.assert_array_equal(shown, photo.image)
+    darkness = 1 - refined.mean(axis=2)  # the yarn across the middle rows, not the outer
+    assert darkness[110:130].mean() > 3 * darkness[:20].mean() + 0.05
+
+    big = Photo(np.zeros((3000, 4000, 3), np.float32), 0.0021)
+    _, frame = display_view(big, config)
+    assert frame.width * frame.height <= MAX_DISPLAY_PIXELS
+    assert frame.width * frame.pixel_size_mm == pytest.approx(4000 * 0.0021, rel=0.01)
+    assert display_view(Photo(np.zeros((600, 2000, 3), np.float32), 0.01), config) == (
+        config.display_scale, None)
+
+
 def test_a_views_search_renders_only_the_yarn_its_view_needs_across_the_whole_view():
     """The search over a microscope's 3 x 2.3 mm view generates a yarn of the view's diagonal
     plus the margin, not the yarn frame's 26 mm, and at a tilt its core still crosses the

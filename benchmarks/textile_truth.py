@@ -1,14 +1,17 @@
 """``ipm measure``'s analysis (:mod:`ipm.textile.image`) on ipm renders whose fibers are
 known, against the truth computed here from the fibers and parameters, not by the analysis:
 
-* diameter: the yarn's envelope ``2 (R_ply + max(r_x, r_y))``;
+* diameter: the fibers' shadow width (:func:`ipm.textile.fibers.shadow_radius`: every
+  fiber's projection drawn at 0.005 mm, the rows fiber covers on at least half the frame's
+  length), what an optical tester sees; the plies' envelope ``2 (R_ply + max(r_x, r_y))``
+  beside it, which a sleeve of loops hides;
 * ply twist: ``1000 / |alpha_ply|`` turns per metre (the analysis given the true ply count,
   as a lab knows its yarn's), and its direction from the fibers: the sense in which the
   first ply's centre (the mean of its fibers in slices along the axis) turns about the axis
   as it advances, in the generator's right-handed frame (right-handed: Z);
 * hairiness H: the fibers regenerated from the render's parameters and fiber seed,
   projected as the camera sees them (the generator's z to the right, its x up), and the
-  length of every segment whose both ends lie beyond the envelope's radius and inside the
+  length of every segment whose both ends lie beyond the shadow's edges and inside the
   frame, per mm of the frame's width.
 
 The renders are labelled sets of ``ipm generate`` at the paper's pitch; none was used to
@@ -34,6 +37,7 @@ from ipm.dataset import read_manifest
 from ipm.frame import FRAME_HEIGHT_MM, FRAME_WIDTH_MM
 from ipm.generator import generate
 from ipm.params import YarnParams
+from ipm.textile.fibers import beyond, shadow_coverage, shadow_radius
 from ipm.textile.image import gray, measure_photo
 
 
@@ -52,25 +56,24 @@ def true_direction(fs) -> str:
     return "Z" if angle[-1] > angle[0] else "S"  # counter-clockwise seen from +z: right-handed
 
 
-def true_hairiness(fs, p: YarnParams, width_mm: float, height_mm: float) -> float:
-    """H from the fibers: projected length (mm) beyond the envelope's radius, per mm."""
+def frame_segments(fs, width_mm: float, height_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """(starts, ends) (K, 3) of the fibers' segments inside the frame, none joining two
+    fibers."""
     pts = fs.points.astype(np.float64)
     a, b = pts[:-1], pts[1:]
     same = np.ones(len(pts) - 1, bool)
     same[fs.offsets[1:-1] - 1] = False  # no segment from one fiber's end to the next's start
-    radius = envelope_diameter(p) / 2
     inside = ((np.abs(a[:, 2]) < width_mm / 2) & (np.abs(b[:, 2]) < width_mm / 2)
               & (np.abs(a[:, 0]) < height_mm / 2) & (np.abs(b[:, 0]) < height_mm / 2))
-    beyond = (np.abs(a[:, 0]) > radius) & (np.abs(b[:, 0]) > radius)
-    keep = same & inside & beyond
-    d = b[keep] - a[keep]
-    return float(np.hypot(d[:, 2], d[:, 0]).sum() / width_mm)
+    keep = same & inside
+    return a[keep], b[keep]
 
 
 def evaluate(folder: str, count: int | None = None) -> dict:
     """Per image the measured over the true diameter, ply twist and H, and whether the
     direction is right; with the analysis' median time per image."""
-    out = {"diameter": [], "tpm": [], "h": [], "direction": [], "seen": [], "seconds": []}
+    out = {"diameter": [], "envelope": [], "tpm": [], "h": [], "direction": [], "seen": [],
+           "mirrored": [], "seconds": []}
     records = read_manifest(folder)[:count]
     for r in records:
         p = r.params
@@ -79,13 +82,19 @@ def evaluate(folder: str, count: int | None = None) -> dict:
         m = measure_photo(img, r.pixel_size_mm, r.setup == "backlit", plies=p.n)
         out["seconds"].append(time.perf_counter() - t)
         fs = generate(p, r.seed)
-        truth_h = true_hairiness(fs, p, img.shape[1] * r.pixel_size_mm,
-                                 img.shape[0] * r.pixel_size_mm)
-        out["diameter"].append(m.diameter_mm / envelope_diameter(p))
+        width, height = img.shape[1] * r.pixel_size_mm, img.shape[0] * r.pixel_size_mm
+        radius = shadow_radius(shadow_coverage(fs, width / 2, height / 2))
+        truth_h = beyond(*frame_segments(fs, width, height), radius) / width
+        out["diameter"].append(m.diameter_mm / (2 * radius))
+        out["envelope"].append(m.diameter_mm / envelope_diameter(p))
         out["tpm"].append((m.ply_twist_tpm or np.nan) / (1000 / abs(p.alpha_ply)))
         out["h"].append(m.hairiness_h / truth_h if truth_h > 0 else np.nan)
         out["seen"].append(m.twist_direction is not None)
-        out["direction"].append(m.twist_direction == true_direction(fs))
+        truth = true_direction(fs)
+        out["direction"].append(m.twist_direction == truth)
+        # the render upside down is the mirror image of the yarn: the other direction
+        flipped = measure_photo(img[::-1], r.pixel_size_mm, r.setup == "backlit", plies=p.n)
+        out["mirrored"].append(flipped.twist_direction == {"S": "Z", "Z": "S"}[truth])
     return {"images": len(records), **{k: np.asarray(v, dtype=float) for k, v in out.items()}}
 
 
@@ -103,8 +112,10 @@ def main() -> None:
     args = ap.parse_args()
     from ipm.benchmarks.machine import markdown_header, publish
 
-    lines = ["| renders | images | diameter | ply twist (turns/m) | H | direction right | "
-             "direction seen | median time |", "|---|---|---|---|---|---|---|---|"]
+    lines = ["| renders | images | diameter (shadow) | diameter against the envelope | "
+             "ply twist (turns/m) | H | direction right | direction seen | "
+             "direction right, mirrored | median time |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     made = []
     for folder in args.data:
         d = json.loads((Path(folder) / "dataset.json").read_text())
@@ -112,9 +123,11 @@ def main() -> None:
                     f"{d['spp']} spp, setup {d.get('scene', {}).get('setup', 'frontlit')}")
         e = evaluate(folder, args.count)
         lines.append(f"| `{folder}` | {e['images']} | {_mare(e['diameter'])} | "
+                     f"{_mare(e['envelope'])} | "
                      f"{_mare(e['tpm'])} | {_mare(e['h'])} | "
                      f"{int(e['direction'].sum())} of {e['images']} | "
                      f"{int(e['seen'].sum())} of {e['images']} | "
+                     f"{int(e['mirrored'].sum())} of {e['images']} | "
                      f"{1000 * np.median(e['seconds']):.0f} ms |")
         print(lines[-1], flush=True)
     command = "python -m ipm.benchmarks.textile_truth " + " ".join(
@@ -123,7 +136,9 @@ def main() -> None:
     note = (f"Median absolute relative error against the truth from the fibers (module notes) "
             f"on renders at their own pitch ({FRAME_WIDTH_MM:g} x {FRAME_HEIGHT_MM:g} mm "
             "frames); the ply twist with the true ply count given (`--plies`); direction "
-            "seen: the analysis names one (S or Z).  The sets (`ipm generate`): "
+            "seen: the analysis names one (S or Z); mirrored: each render measured upside "
+            "down, the mirror image of its yarn, whose direction is the other.  The sets "
+            "(`ipm generate`): "
             + "; ".join(made) + ".")
     publish(markdown_header("ipm measure against the fibers' truth", command, "numpy")
             + "\n" + note + "\n\n" + "\n".join(lines) + "\n", args.out)

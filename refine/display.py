@@ -4,9 +4,8 @@ measures beside the photo's (:mod:`ipm.textile`)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 

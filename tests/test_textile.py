@@ -123,8 +123,8 @@ def test_hairiness_h_is_the_length_of_fiber_beyond_the_core_per_length():
         m = measure_photo(image, pitch, backlit=True)
         assert m.hairiness_h == pytest.approx(truth, rel=0.1)
         assert len(m.hair_lengths_mm) == 12
-        # each piece is counted from the body grown by 2 px of 0.01 mm, and a skeleton
-        # stops short of its fiber's ends
+        # each piece is counted from 2 px of 0.01 mm beyond the core's edge, and a
+        # skeleton stops short of its fiber's ends
         assert sorted(m.hair_lengths_mm) == pytest.approx(sorted(drawn), rel=0.1, abs=0.05)
 
 

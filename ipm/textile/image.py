@@ -35,20 +35,24 @@ as its photo is.  Definitions and how they relate to the testers: ``docs/measure
 * Diameter along the yarn: the width of every :data:`DIAMETER_WINDOW_MM` of yarn between
   the outermost crossings of half the core's signal by the window's median row profile;
   its coefficient of variation (CV) over the windows.
-* Twist direction: the sign of the ply stripes' slant in the core band: the phase step of
-  the ply period's wave along the yarn from just above the axis to just below
-  (:func:`twist_slant`; the surface fibers, which slant against the plies, do not count).
+* Twist direction: the sign of the ply stripes' slant in the core band: how the phase of
+  the ply period's wave along the yarn moves from row to row across the middle half of the
+  core (:func:`twist_slant`; the surface fibers, which slant against the plies, do not
+  count).
   Z (a right-handed helix) slants as the middle stroke of a Z held upright, which along a
   horizontal yarn runs from upper left to lower right.  In
   transmitted light a yarn and its mirror image through the image plane cast the same
   shadow, so a pure silhouette shows no direction (strength near 0: ``None``); what a
   backlit photo shows of the direction comes from the surface in focus.
-* Hairiness H (Uster): the total projected length (mm) of the fibers beyond the yarn's body
-  per mm of yarn, both sides: the length of the skeleton of the fiber pixels (those that
-  count as fiber for the crossings, above) outside the body, diagonal steps sqrt(2).  The
-  body follows the yarn column by column (:func:`yarn_body`), so its bulges and its
-  blurred edge are not hairs.  Hair lengths: each
-  8-connected piece of that skeleton.
+* Hairiness H (Uster): the total projected length (mm) of the fibers beyond the core's
+  edges per mm of yarn, both sides.  Fibers overlap where hairs are dense (a sleeve of
+  loops), so their length is not their skeleton's: each row beyond the edges is read as a
+  Boolean model of fibers (stereology: fibers of width w dropped at random cover a share
+  ``c = 1 - exp(-L_A w)`` of the area, where ``L_A`` is their length per area), so the
+  row's fiber length per length of yarn is ``-ln(1 - c) / w``; w is the fiber pixels' area
+  per length of their skeleton on the rows where hairs are sparse
+  (:data:`SPARSE_COVERAGE`), measured on the image itself.  Hair lengths and angles: each
+  8-connected piece of the skeleton of the fiber pixels beyond the edges.
 * Zweigle-type counts: the crossings of the lines at :data:`ZWEIGLE_DISTANCES_MM` beyond the
   core's edge per 100 m of yarn, one side (both averaged), as far as the frame reaches;
   ``S3`` is the count at 3 mm where the frame reaches it.
@@ -255,10 +259,17 @@ S3_DISTANCE_MM = 3.0
 REACH = 1.5
 #: The harmonics of the ply period among which the twist's slant takes the strongest.
 HARMONICS = (1, 2, 3)
+#: The twist's slant is read on the rows within this share of the core's diameter of the
+#: axis (the middle half of the core).
+SLANT_BAND = 0.25
 #: A slant (:func:`twist_slant`) weaker than this tells no twist direction.
 MIN_SLANT = 0.05
-#: Pixels (at the hair pitch) by which the yarn's body is grown before hairs are counted.
-BODY_MARGIN_PX = 2
+#: Pixels (at the hair pitch) beyond the core's half-contrast edge at which hairs start:
+#: the edge's own blur, above the fibers' lower threshold, is not hair.
+EDGE_MARGIN_PX = 2
+#: Rows beyond the core whose fiber pixels cover less than this share of the yarn's length
+#: have sparse hairs: the fibers' width for H is measured there.
+SPARSE_COVERAGE = 0.1
 #: mm in 100 m: the Zweigle counts' unit length.
 MM_PER_100M = 1e5
 
@@ -290,28 +301,34 @@ def twist_slant(sig: np.ndarray, diameter_px: float, period_px: float) -> float:
     """The slant of the ply stripes in the core band of a levelled signal, in [-1, 1]: > 0
     slanting as Z twist (upper left to lower right along a horizontal yarn), < 0 as S, 0
     without a ply period.  Each row's Fourier coefficient at the ply period ``period_px``
-    along the yarn, summed over the rows just above the axis and just below (an eighth of
-    the core each): a stripe slanting as Z lies further right below, so the lower sum's
-    phase lags; the slant is minus the sine of the phase step, times how well the rows of
-    each half agree.  Of the period and its :data:`HARMONICS` (a period read as a multiple
-    of the plies' when they differ), the strongest wave.  Only the plies' period counts:
-    the surface fibers, which slant against the plies, and the core's straight edges do
-    not."""
+    along the yarn, over the rows within :data:`SLANT_BAND` core diameters of the axis: a
+    stripe slanting as Z lies further right in each lower row, so the coefficients' phase
+    falls row by row.  Their phases unwrapped from row to row (a projected helix's phase
+    moves fastest at the axis and turns more than half a period across the core of a yarn
+    of many plies) and a line fitted through them weighted by the rows' amplitude; the
+    slant is ``-tanh`` of the phase the line turns over half the band, times how well the
+    rows agree with the line.  Of the period and its :data:`HARMONICS` (a period read as a
+    multiple of the plies' when they differ), the strongest wave.  Only the plies' period
+    counts: the surface fibers, which slant against the plies, and the core's straight
+    edges do not."""
     if not (np.isfinite(period_px) and period_px > 2):
         return 0.0
     h, w = sig.shape
-    mid, half = (h - 1) // 2, max(1, int(round(diameter_px / 8)))
-    band = sig[max(0, mid - half):mid + 1 + half]
+    mid, half = (h - 1) // 2, max(2, int(round(SLANT_BAND * diameter_px)))
+    band = sig[max(0, mid - half):mid + half + 1]
     band = band - band.mean(axis=1, keepdims=True)
     waves = [np.exp(-2j * np.pi * np.arange(w) * k / period_px) for k in HARMONICS]
     coeff = max((band @ wave for wave in waves), key=lambda c: float(np.sum(np.abs(c) ** 2)))
-    centre = mid - max(0, mid - half)
-    top, bottom = coeff[:centre], coeff[centre + 1:]
-    if not (len(top) and len(bottom)):
+    weight = np.abs(coeff)
+    if weight.sum() <= 0:
         return 0.0
-    agree = (abs(top.sum()) * abs(bottom.sum())
-             / max(np.abs(top).sum() * np.abs(bottom).sum(), 1e-12))
-    return float(-np.sin(np.angle(bottom.sum() * np.conj(top.sum()))) * agree)
+    phase = np.unwrap(np.angle(coeff))
+    rows = np.arange(len(coeff)) - (mid - max(0, mid - half))
+    centred = rows - np.average(rows, weights=weight)
+    slope = float(np.sum(weight * centred * phase) / max(np.sum(weight * centred ** 2), 1e-12))
+    offset = np.average(phase - slope * rows, weights=weight)
+    agree = abs(np.sum(coeff * np.exp(-1j * (slope * rows + offset)))) / weight.sum()
+    return float(-np.tanh(slope * half) * agree)
 
 
 def skeleton_links(skeleton: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, float]]:
@@ -335,28 +352,20 @@ def skeleton_links(skeleton: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, f
     return out
 
 
-def yarn_body(sig: np.ndarray, radius_px: float) -> np.ndarray:
-    """The yarn's body in a levelled signal, column by column: where the signal, averaged
-    along the yarn over the core's radius (so single fibers do not count), is above half the
-    core's (the row profile's peak), the pieces that reach the middle row, grown by
-    :data:`BODY_MARGIN_PX` (the edge's own blur is not a hair)."""
-    h = sig.shape[0]
-    along = ndimage.uniform_filter1d(sig, size=max(3, round(radius_px)), axis=1)
-    dense = along > 0.5 * np.median(sig, axis=1).max()
-    labels, _ = ndimage.label(dense)
-    middle = np.unique(labels[(h - 1) // 2])
-    body = np.isin(labels, middle[middle > 0])
-    return ndimage.binary_dilation(body, np.ones((3, 3)), iterations=BODY_MARGIN_PX)
+def beyond_core(shape: tuple[int, int], radius_px: float) -> np.ndarray:
+    """(H,) bool: the rows of a levelled image farther than ``radius_px`` and
+    :data:`EDGE_MARGIN_PX` from its middle row."""
+    return np.abs(np.arange(shape[0]) - (shape[0] - 1) / 2) > radius_px + EDGE_MARGIN_PX
 
 
-def hair_pieces(fiber: np.ndarray, body: np.ndarray) -> tuple[np.ndarray, np.ndarray,
-                                                                np.ndarray]:
-    """(the skeleton of the fiber pixels outside the yarn's ``body`` (:func:`yarn_body`),
-    each pixel labelled by its 8-connected piece, 1 .. K, 0 off it; each piece's length
-    (px); each piece's angle to the axis in degrees)."""
+def hair_pieces(fiber: np.ndarray, radius_px: float) -> tuple[np.ndarray, np.ndarray,
+                                                              np.ndarray]:
+    """(the skeleton of the fiber pixels beyond the core's edges (``radius_px`` from the
+    middle row of a levelled ``fiber`` mask), each pixel labelled by its 8-connected piece,
+    1 .. K, 0 off it; each piece's length (px); each piece's angle to the axis in degrees)."""
     from skimage.morphology import skeletonize
 
-    skeleton = skeletonize(fiber & ~body)
+    skeleton = skeletonize(fiber & beyond_core(fiber.shape, radius_px)[:, None])
     labels, count = ndimage.label(skeleton, structure=np.ones((3, 3)))
     padded = np.pad(labels, 1).ravel()
     lengths = np.zeros(count + 1)
@@ -370,6 +379,26 @@ def hair_pieces(fiber: np.ndarray, body: np.ndarray) -> tuple[np.ndarray, np.nda
             vx, vy = vecs[:, -1]
             angles[k] = math.degrees(math.atan2(abs(vy), abs(vx)))
     return labels, lengths[1:], angles
+
+
+def hair_length_per_length(fiber: np.ndarray, radius_px: float, labels: np.ndarray,
+                           lengths: np.ndarray) -> float:
+    """Uster's H of a levelled ``fiber`` mask: the fibers' length beyond the core's edges
+    per length of yarn, both sides, each row read as a Boolean model (module notes);
+    ``labels``, ``lengths``: :func:`hair_pieces` of the mask (its skeleton and the length
+    of each piece, px).  0 without fiber beyond the edges."""
+    rows = beyond_core(fiber.shape, radius_px)
+    out = fiber & rows[:, None]
+    cover = out.sum(axis=1) / fiber.shape[1]
+    skeleton = labels > 0
+    sparse = rows & (cover > 0) & (cover < SPARSE_COVERAGE) & skeleton.any(axis=1)
+    if not sparse.any():
+        sparse = rows & skeleton.any(axis=1)
+    if not sparse.any():
+        return 0.0
+    per_pixel = lengths.sum() / skeleton.sum()  # skeleton length per skeleton pixel
+    width = out[sparse].sum() / (skeleton[sparse].sum() * per_pixel)  # px of mask per px
+    return float((-np.log(np.clip(1 - cover[rows], 1e-3, 1)) / width).sum())
 
 
 @dataclass(frozen=True)
@@ -478,7 +507,7 @@ def analyse(img: np.ndarray, pixel_size_mm: float, backlit: bool, plies: int | N
     direction = None if abs(slant) < MIN_SLANT else ("Z" if slant > 0 else "S")
     hair, pitch, radius, coarse_line = hair_signal(img, pixel_size_mm, backlit)
     fiber = fiber_pixels(hair)
-    labels, lengths, angles = hair_pieces(fiber, yarn_body(hair, radius))
+    labels, lengths, angles = hair_pieces(fiber, radius)
     length_mm = hair.shape[1] * pitch
     counts = {k: v * MM_PER_100M for k, v in
               crossings_per_mm(fiber, radius, pitch, ZWEIGLE_DISTANCES_MM).items()
@@ -490,7 +519,7 @@ def analyse(img: np.ndarray, pixel_size_mm: float, backlit: bool, plies: int | N
         diameter_cv_pct=float(100 * np.std(profile) / np.mean(profile)) if len(profile) > 1
         else float("nan"),
         ply_period_mm=period, plies=plies, ply_twist_tpm=tpm, twist_direction=direction,
-        twist_slant=slant, hairiness_h=float(lengths.sum()) * pitch / length_mm,
+        twist_slant=slant, hairiness_h=hair_length_per_length(fiber, radius, labels, lengths),
         s3=counts.get(S3_DISTANCE_MM), hairs_per_100m={f"{k:g}": v for k, v in counts.items()},
         diameter_profile_mm=[float(x) for x in profile],
         hair_lengths_mm=[float(x) for x in lengths * pitch],
